@@ -1,0 +1,37 @@
+#include <cstdio>
+#include <exception>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include "commands/subcommand.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App cli{
+      "nirslam: near-infrared visual SLAM for field rigs.\n"
+      "Without a subcommand it opens the operator GUI on the built-in demo sequence\n"
+      "(headless, writing a screenshot, when there is no display)."};
+  cli.set_version_flag("--version", std::string("nirslam ") + NIRSLAM_VERSION);
+  cli.require_subcommand(0, 1);
+  bool verbose = false;
+  cli.add_flag("-v,--verbose", verbose, "Print debug messages");
+
+  nirslam::app::CommandAction action;
+  nirslam::app::add_gui_command(cli, action);
+  nirslam::app::add_run_command(cli, action);
+  nirslam::app::add_entropy_command(cli, action);
+
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return cli.exit(e);
+  }
+  spdlog::set_level(verbose ? spdlog::level::debug : spdlog::level::info);
+
+  try {
+    return action ? action() : nirslam::app::run_default_gui();
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,34 @@
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include <opencv2/core/mat.hpp>
+
+#include "nirslam/image/frame.hpp"
+
+namespace nirslam {
+
+using GreyHistogram = std::array<std::uint64_t, 256>;
+
+// Histogram over 256 bins. 8-bit images bin by value; images with more bits are binned by their top
+// eight significant bits (value >> (bit_depth - 8)), so a Y10 image and its 8-bit version agree.
+// Values above the declared range (corrupt data) land in the top bin.
+GreyHistogram grey_histogram(const cv::Mat& image, int bit_depth);
+
+// Information entropy in bits, the paper's Eq. 2-1: H = -sum_i p_i log2 p_i over the 256 bins.
+// 0 for an empty histogram or a constant image; at most 8.
+double entropy_bits(const GreyHistogram& histogram);
+
+struct ImageQuality {
+  double entropy_bits = 0.0;
+  double saturated_fraction = 0.0;  // pixels at the top code of the bit depth (or above it)
+  double black_fraction = 0.0;      // pixels at code 0
+};
+
+ImageQuality measure_quality(const cv::Mat& image, int bit_depth);
+inline ImageQuality measure_quality(const Frame& frame) {
+  return measure_quality(frame.image, frame.bit_depth);
+}
+
+}  // namespace nirslam

@@ -1,0 +1,50 @@
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "nirslam/image/frame.hpp"
+
+namespace nirslam {
+
+class CameraModel;
+
+struct SourceInfo {
+  std::string kind;         // "tum", "euroc", "folder", "demo", "v4l2", "session", ...
+  std::string description;  // what an operator recognises: a path, a device, a scene
+  std::optional<std::size_t> frame_count;  // known for datasets, unknown for live sources
+  bool live = false;        // a live source keeps producing frames whether or not they are consumed
+  double nominal_fps = 0.0; // recorded or device rate, 0 when unknown
+};
+
+// A stream of frames. Datasets, cameras, recorded sessions and the simulator all implement it.
+// Not thread-safe: one consumer (the worker) pulls frames.
+class Source {
+public:
+  virtual ~Source() = default;
+  Source() = default;
+  Source(const Source&) = delete;
+  Source& operator=(const Source&) = delete;
+
+  virtual const SourceInfo& info() const = 0;
+
+  // The next frame, or std::nullopt at the end of the stream. A frame that cannot be read throws
+  // nirslam::InputError naming the file; a frame of the wrong size or depth is such a frame.
+  virtual std::optional<Frame> next() = 0;
+
+  // Back to the first frame. Live sources restart streaming.
+  virtual void rewind() = 0;
+
+  // Frames the source itself had to discard because its consumer lagged (live sources drop the
+  // oldest queued frame rather than block); 0 for datasets, which are read frame by frame.
+  virtual std::int64_t frames_dropped() const { return 0; }
+
+  // The geometric camera model, when the source carries a calibration; nullptr otherwise.
+  virtual std::shared_ptr<const CameraModel> camera() const { return nullptr; }
+};
+
+}  // namespace nirslam

@@ -1,0 +1,48 @@
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "nirslam/image/frame.hpp"
+#include "nirslam/quality/image_quality.hpp"
+#include "nirslam/sources/source.hpp"
+
+namespace nirslam {
+
+enum class WorkerState { Idle, Running, Paused, Finished, Failed };
+const char* to_string(WorkerState state);
+
+struct QualitySample {
+  std::int64_t frame_index = 0;
+  double timestamp_s = 0.0;
+  ImageQuality quality;
+};
+
+struct StageTimings {
+  double read_ms = 0.0;     // pulling the frame from the source (decode included)
+  double quality_ms = 0.0;  // entropy and clipping
+  double total_ms = 0.0;
+};
+
+// What the worker knew after one frame. Published as std::shared_ptr<const Snapshot> and never
+// modified afterwards, so readers on other threads need no lock. The frame's pixel buffer is shared
+// with the worker, which never writes to a buffer after publishing it.
+struct Snapshot {
+  std::uint64_t sequence = 0;  // increases by one with every publish
+  WorkerState state = WorkerState::Idle;
+  SourceInfo source;
+  std::optional<Frame> frame;  // the latest processed frame
+  ImageQuality quality;        // of `frame`
+  std::vector<QualitySample> quality_history;  // oldest first, bounded length
+  StageTimings timings;
+  std::int64_t frames_processed = 0;
+  std::int64_t frames_dropped = 0;  // live sources only: frames skipped because the pipeline lagged
+  double processing_fps = 0.0;      // frames per second over the last second of processing
+  std::optional<double> illuminator_power_w;  // the power the operator set, when set
+  std::string message;              // last status or error, for the operator
+};
+
+}  // namespace nirslam

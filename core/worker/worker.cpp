@@ -1,0 +1,281 @@
+#include "nirslam/worker/worker.hpp"
+
+#include <exception>
+#include <type_traits>
+
+#include <spdlog/spdlog.h>
+
+#include "nirslam/quality/image_quality.hpp"
+
+namespace nirslam {
+namespace {
+
+double milliseconds_between(std::chrono::steady_clock::time_point from,
+                            std::chrono::steady_clock::time_point to) {
+  return std::chrono::duration<double, std::milli>(to - from).count();
+}
+
+}  // namespace
+
+Worker::Worker(WorkerOptions options) : options_(options) {
+  latest_.store(std::make_shared<const Snapshot>());
+  thread_ = std::thread([this] { run(); });
+}
+
+Worker::~Worker() {
+  {
+    std::lock_guard lock(queue_mutex_);
+    exit_requested_ = true;
+  }
+  queue_cv_.notify_all();
+  thread_.join();
+}
+
+void Worker::post(Command command) {
+  {
+    std::lock_guard lock(queue_mutex_);
+    queue_.push_back(std::move(command));
+  }
+  queue_cv_.notify_one();
+}
+
+std::shared_ptr<const Snapshot> Worker::snapshot() const { return latest_.load(); }
+
+std::shared_ptr<const Snapshot> Worker::wait_for(const std::function<bool(const Snapshot&)>& done,
+                                                 std::chrono::milliseconds timeout) const {
+  std::shared_ptr<const Snapshot> seen = latest_.load();
+  std::unique_lock lock(published_mutex_);
+  published_cv_.wait_for(lock, timeout, [&] {
+    seen = latest_.load();
+    return done(*seen);
+  });
+  return seen;
+}
+
+void Worker::set_observer(FrameObserver observer) {
+  // Handed over under the queue lock; the worker thread moves it into observer_ between frames,
+  // so it is the only thread that ever calls or replaces the active observer.
+  {
+    std::lock_guard lock(queue_mutex_);
+    incoming_observer_ = std::move(observer);
+  }
+  queue_cv_.notify_one();
+}
+
+void Worker::run() {
+  while (true) {
+    std::deque<Command> commands;
+    {
+      std::unique_lock lock(queue_mutex_);
+      const auto has_work = [&] {
+        return exit_requested_ || !queue_.empty() || incoming_observer_ || state_ == WorkerState::Running ||
+               steps_pending_ > 0;
+      };
+      queue_cv_.wait(lock, has_work);
+      if (exit_requested_) return;
+      commands.swap(queue_);
+      if (incoming_observer_) {
+        observer_ = std::move(*incoming_observer_);
+        incoming_observer_.reset();
+      }
+    }
+    for (Command& command : commands) apply(command);
+
+    if (state_ == WorkerState::Running || steps_pending_ > 0) {
+      if (pending_frame_) {
+        // At recorded speed the next frame waits for its time; a command wakes the wait early.
+        if (const auto deadline = pacing_deadline(pending_frame_->timestamp_s)) {
+          std::unique_lock lock(queue_mutex_);
+          if (queue_cv_.wait_until(lock, *deadline, [&] { return exit_requested_ || !queue_.empty(); }))
+            continue;
+        }
+      }
+      process_one_frame();
+    }
+  }
+}
+
+void Worker::apply(Command& command) {
+  std::visit(
+      [this](auto& c) {
+        using C = std::decay_t<decltype(c)>;
+        if constexpr (std::is_same_v<C, command::Start>) {
+          if (!source_) return publish_state(WorkerState::Idle, "no source selected");
+          if (state_ == WorkerState::Finished || state_ == WorkerState::Failed) rewind_source();
+          pacing_origin_.reset();
+          publish_state(WorkerState::Running, "running");
+        } else if constexpr (std::is_same_v<C, command::Pause>) {
+          if (state_ == WorkerState::Running) publish_state(WorkerState::Paused, "paused");
+        } else if constexpr (std::is_same_v<C, command::Step>) {
+          if (!source_) return publish_state(WorkerState::Idle, "no source selected");
+          if (state_ == WorkerState::Finished || state_ == WorkerState::Failed) rewind_source();
+          if (state_ != WorkerState::Running) {
+            state_ = WorkerState::Paused;
+            ++steps_pending_;
+          }
+        } else if constexpr (std::is_same_v<C, command::Stop>) {
+          rewind_source();
+          publish_state(WorkerState::Idle, "stopped");
+        } else if constexpr (std::is_same_v<C, command::Reset>) {
+          rewind_source();
+          history_.clear();
+          frames_processed_ = 0;
+          recent_completions_.clear();
+          auto next = copy_of_latest();
+          next->frame.reset();
+          next->quality = {};
+          next->quality_history.clear();
+          next->frames_processed = 0;
+          next->processing_fps = 0.0;
+          next->state = state_ == WorkerState::Running ? state_ : WorkerState::Idle;
+          next->message = "reset";
+          state_ = next->state;
+          publish(std::move(next));
+        } else if constexpr (std::is_same_v<C, command::SetSource>) {
+          source_.reset();
+          history_.clear();
+          frames_processed_ = 0;
+          recent_completions_.clear();
+          pending_frame_.reset();
+          steps_pending_ = 0;
+          auto next = std::make_shared<Snapshot>();
+          next->sequence = latest_.load()->sequence + 1;
+          next->illuminator_power_w = power_w_;
+          try {
+            source_ = c.make();
+            next->source = source_->info();
+            next->state = state_ = WorkerState::Idle;
+            next->message = "source ready: " + source_->info().description;
+          } catch (const std::exception& e) {
+            next->state = state_ = WorkerState::Failed;
+            next->message = e.what();
+            spdlog::error("cannot open source: {}", e.what());
+          }
+          publish(std::move(next));
+        } else if constexpr (std::is_same_v<C, command::SetIlluminatorPower>) {
+          power_w_ = c.watts;
+          auto next = copy_of_latest();
+          next->illuminator_power_w = power_w_;
+          publish(std::move(next));
+        } else if constexpr (std::is_same_v<C, command::SetPacing>) {
+          options_.pacing = c.pacing;
+          pacing_origin_.reset();
+        }
+      },
+      command);
+}
+
+std::optional<Worker::Clock::time_point> Worker::pacing_deadline(double timestamp_s) {
+  if (options_.pacing != Pacing::RecordedSpeed || steps_pending_ > 0) return std::nullopt;
+  if (!pacing_origin_) {
+    pacing_origin_ = std::make_pair(Clock::now(), timestamp_s);
+    return std::nullopt;
+  }
+  const auto offset = std::chrono::duration<double>(timestamp_s - pacing_origin_->second);
+  return pacing_origin_->first + std::chrono::duration_cast<Clock::duration>(offset);
+}
+
+void Worker::process_one_frame() {
+  const auto started = Clock::now();
+  const bool single_step = steps_pending_ > 0;
+  if (single_step) --steps_pending_;
+  if (!source_) return publish_state(WorkerState::Idle, "no source selected");
+
+  std::optional<Frame> frame;
+  try {
+    if (pending_frame_) {
+      frame = std::move(pending_frame_);
+      pending_frame_.reset();
+    } else {
+      frame = source_->next();
+      if (frame && options_.pacing == Pacing::RecordedSpeed && !single_step) {
+        // Read ahead of time so decoding does not delay the frame past its deadline.
+        const auto deadline = pacing_deadline(frame->timestamp_s);
+        if (deadline && *deadline > Clock::now()) {
+          pending_frame_ = std::move(frame);
+          return;
+        }
+      }
+    }
+    if (frame) validate_frame(*frame, frame->name.empty() ? source_->info().description : frame->name);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return publish_state(WorkerState::Failed, e.what());
+  }
+
+  if (!frame) {
+    if (options_.loop && frames_processed_ > 0) {
+      rewind_source();
+      return;
+    }
+    return publish_state(WorkerState::Finished, "end of sequence");
+  }
+  const auto read_done = Clock::now();
+
+  const ImageQuality quality = measure_quality(*frame);
+  const auto quality_done = Clock::now();
+
+  history_.push_back({frame->index, frame->timestamp_s, quality});
+  while (history_.size() > options_.history_length) history_.pop_front();
+  ++frames_processed_;
+  recent_completions_.push_back(quality_done);
+  while (quality_done - recent_completions_.front() > std::chrono::seconds(1))
+    recent_completions_.pop_front();
+
+  auto next = std::make_shared<Snapshot>();
+  next->sequence = latest_.load()->sequence + 1;
+  next->state = state_ = single_step ? WorkerState::Paused : state_;
+  next->source = source_->info();
+  next->frame = std::move(frame);
+  next->quality = quality;
+  next->quality_history.assign(history_.begin(), history_.end());
+  next->timings.read_ms = milliseconds_between(started, read_done);
+  next->timings.quality_ms = milliseconds_between(read_done, quality_done);
+  next->timings.total_ms = milliseconds_between(started, Clock::now());
+  next->frames_processed = frames_processed_;
+  next->frames_dropped = source_->frames_dropped();
+  const double window_s =
+      std::chrono::duration<double>(quality_done - recent_completions_.front()).count();
+  next->processing_fps =
+      recent_completions_.size() > 1 && window_s > 0.0 ? (recent_completions_.size() - 1) / window_s : 0.0;
+  next->illuminator_power_w = power_w_;
+  next->message = state_ == WorkerState::Paused ? "paused" : "running";
+  if (observer_) observer_(*next);
+  publish(std::move(next));
+}
+
+void Worker::rewind_source() {
+  pending_frame_.reset();
+  pacing_origin_.reset();
+  steps_pending_ = 0;
+  if (!source_) return;
+  try {
+    source_->rewind();
+  } catch (const std::exception& e) {
+    publish_state(WorkerState::Failed, e.what());
+  }
+}
+
+void Worker::publish_state(WorkerState state, std::string message) {
+  state_ = state;
+  auto next = copy_of_latest();
+  next->state = state;
+  next->message = std::move(message);
+  publish(std::move(next));
+}
+
+std::shared_ptr<Snapshot> Worker::copy_of_latest() const {
+  auto next = std::make_shared<Snapshot>(*latest_.load());
+  ++next->sequence;
+  return next;
+}
+
+void Worker::publish(std::shared_ptr<Snapshot> next) {
+  latest_.store(std::move(next));
+  // Taking the mutex between the store and the notify closes the window in which a waiter has
+  // checked its predicate but not yet started waiting.
+  { std::lock_guard lock(published_mutex_); }
+  published_cv_.notify_all();
+}
+
+}  // namespace nirslam

@@ -1,0 +1,222 @@
+#include <atomic>
+#include <chrono>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "nirslam/common/error.hpp"
+#include "nirslam/sources/demo_source.hpp"
+#include "nirslam/worker/worker.hpp"
+
+namespace nirslam {
+namespace {
+
+using namespace std::chrono_literals;
+
+// A dataset-like source of `count` small frames whose pixel value is the frame index; frame
+// `bad_index` (if any) throws as a corrupt file would.
+class CountingSource final : public Source {
+public:
+  CountingSource(int count, double period_s = 0.05, int bad_index = -1, int bad_type = -1)
+      : count_(count), period_s_(period_s), bad_index_(bad_index), bad_type_(bad_type) {
+    info_.kind = "test";
+    info_.description = "counting source";
+    info_.frame_count = static_cast<std::size_t>(count);
+  }
+  const SourceInfo& info() const override { return info_; }
+  std::optional<Frame> next() override {
+    if (index_ >= count_) return std::nullopt;
+    if (index_ == bad_index_) throw InputError("frames/000" + std::to_string(index_) + ".png", "corrupt PNG");
+    Frame frame;
+    frame.image = cv::Mat(8, 8, index_ == bad_type_ ? CV_32FC1 : CV_8UC1, cv::Scalar(index_ % 256));
+    frame.index = index_;
+    frame.timestamp_s = index_ * period_s_;
+    frame.name = "frame " + std::to_string(index_);
+    ++index_;
+    return frame;
+  }
+  void rewind() override { index_ = 0; }
+
+private:
+  SourceInfo info_;
+  int count_;
+  double period_s_;
+  int bad_index_;
+  int bad_type_;
+  int index_ = 0;
+};
+
+SourceFactory counting(int count, double period_s = 0.05, int bad_index = -1, int bad_type = -1) {
+  return [=] { return std::make_unique<CountingSource>(count, period_s, bad_index, bad_type); };
+}
+
+bool settled(const Snapshot& s) {
+  return s.state == WorkerState::Finished || s.state == WorkerState::Failed;
+}
+
+TEST(Worker, StartsIdleWithAnEmptySnapshot) {
+  Worker worker;
+  const auto snapshot = worker.snapshot();
+  ASSERT_TRUE(snapshot);
+  EXPECT_EQ(snapshot->state, WorkerState::Idle);
+  EXPECT_FALSE(snapshot->frame.has_value());
+}
+
+TEST(Worker, ProcessesEveryFrameOfADatasetThenFinishes) {
+  Worker worker({.pacing = Pacing::AsFastAsPossible, .history_length = 10});
+  worker.post(command::SetSource{counting(25)});
+  worker.post(command::Start{});
+  const auto last = worker.wait_for(settled, 10s);
+  ASSERT_EQ(last->state, WorkerState::Finished) << last->message;
+  EXPECT_EQ(last->frames_processed, 25);
+  ASSERT_TRUE(last->frame);
+  EXPECT_EQ(last->frame->index, 24);
+  ASSERT_EQ(last->quality_history.size(), 10u);  // bounded
+  EXPECT_EQ(last->quality_history.front().frame_index, 15);
+  EXPECT_EQ(last->quality_history.back().frame_index, 24);
+  EXPECT_EQ(last->source.description, "counting source");
+}
+
+TEST(Worker, PauseHoldsAndStepAdvancesExactlyOneFrame) {
+  Worker worker;
+  worker.post(command::SetSource{counting(100)});
+  worker.post(command::Step{});
+  auto s = worker.wait_for([](const Snapshot& x) { return x.frames_processed == 1; }, 5s);
+  ASSERT_EQ(s->frames_processed, 1);
+  EXPECT_EQ(s->state, WorkerState::Paused);
+  std::this_thread::sleep_for(50ms);
+  EXPECT_EQ(worker.snapshot()->frames_processed, 1) << "a paused worker must not advance";
+  worker.post(command::Step{});
+  worker.post(command::Step{});
+  s = worker.wait_for([](const Snapshot& x) { return x.frames_processed == 3; }, 5s);
+  EXPECT_EQ(s->frames_processed, 3);
+  EXPECT_EQ(s->frame->index, 2);
+}
+
+TEST(Worker, StopRewindsAndStartBeginsAgain) {
+  Worker worker;
+  worker.post(command::SetSource{counting(5)});
+  worker.post(command::Start{});
+  ASSERT_EQ(worker.wait_for(settled, 5s)->state, WorkerState::Finished);
+  worker.post(command::Stop{});
+  worker.post(command::Step{});
+  const auto s = worker.wait_for([](const Snapshot& x) { return x.frames_processed == 6; }, 5s);
+  ASSERT_TRUE(s->frame);
+  EXPECT_EQ(s->frame->index, 0);
+}
+
+TEST(Worker, CorruptFrameFailsWithTheFileNamed) {
+  Worker worker;
+  worker.post(command::SetSource{counting(10, 0.05, 4)});
+  worker.post(command::Start{});
+  const auto s = worker.wait_for(settled, 5s);
+  ASSERT_EQ(s->state, WorkerState::Failed);
+  EXPECT_NE(s->message.find("frames/0004.png"), std::string::npos) << s->message;
+  EXPECT_EQ(s->frames_processed, 4);
+}
+
+TEST(Worker, FrameOfTheWrongPixelTypeFailsInsteadOfBeingMeasured) {
+  Worker worker;
+  worker.post(command::SetSource{counting(10, 0.05, -1, 3)});
+  worker.post(command::Start{});
+  const auto s = worker.wait_for(settled, 5s);
+  ASSERT_EQ(s->state, WorkerState::Failed);
+  EXPECT_NE(s->message.find("frame 3"), std::string::npos) << s->message;
+}
+
+TEST(Worker, SourceThatCannotOpenReportsWhy) {
+  Worker worker;
+  worker.post(command::SetSource{[]() -> std::unique_ptr<Source> {
+    throw InputError("/data/seq/times.txt", 3, "expected 'id timestamp exposure'");
+  }});
+  const auto s = worker.wait_for([](const Snapshot& x) { return x.state == WorkerState::Failed; }, 5s);
+  ASSERT_EQ(s->state, WorkerState::Failed);
+  EXPECT_NE(s->message.find("times.txt:3"), std::string::npos) << s->message;
+  worker.post(command::Start{});  // nothing to start: stays usable, says so
+  const auto after = worker.wait_for([](const Snapshot& x) { return x.message == "no source selected"; }, 5s);
+  EXPECT_EQ(after->message, "no source selected");
+}
+
+TEST(Worker, RecordedSpeedFollowsTheTimestamps) {
+  Worker worker({.pacing = Pacing::RecordedSpeed});
+  worker.post(command::SetSource{counting(11, 0.04)});  // 0.4 s of recording
+  const auto started = std::chrono::steady_clock::now();
+  worker.post(command::Start{});
+  ASSERT_EQ(worker.wait_for(settled, 10s)->state, WorkerState::Finished);
+  // A lower bound only: a busy machine can make it slower, never faster.
+  EXPECT_GE(std::chrono::steady_clock::now() - started, 390ms);
+}
+
+TEST(Worker, ObserverSeesEveryFrameBeforeItIsPublished) {
+  Worker worker;
+  std::vector<std::int64_t> seen;  // written on the worker thread only, read after it settles
+  worker.set_observer([&seen](const Snapshot& s) { seen.push_back(s.frame->index); });
+  worker.post(command::SetSource{counting(30)});
+  worker.post(command::Start{});
+  ASSERT_EQ(worker.wait_for(settled, 5s)->state, WorkerState::Finished);
+  worker.post(command::Pause{});  // round trip through the queue orders the reads below
+  worker.wait_for([](const Snapshot&) { return true; }, 1s);
+  ASSERT_EQ(seen.size(), 30u);
+  for (std::size_t i = 0; i < seen.size(); ++i) EXPECT_EQ(seen[i], static_cast<std::int64_t>(i));
+}
+
+TEST(Worker, ReadersOnOtherThreadsSeeConsistentMonotonicSnapshots) {
+  Worker worker;
+  worker.post(command::SetSource{[] {
+    DemoOptions options;
+    options.width = 160;
+    options.height = 120;
+    options.frame_count = 120;
+    return make_demo_source(options);
+  }});
+  worker.post(command::Start{});
+  std::atomic<bool> done = false;
+  std::atomic<int> violations = 0;
+  auto reader = [&] {
+    std::uint64_t last_sequence = 0;
+    while (!done) {
+      const auto s = worker.snapshot();
+      if (s->sequence < last_sequence) ++violations;
+      last_sequence = s->sequence;
+      if (s->frame) {
+        // The published frame and its quality belong together and the pixels stay readable.
+        const ImageQuality again = measure_quality(*s->frame);
+        if (again.entropy_bits != s->quality.entropy_bits) ++violations;
+        if (s->quality_history.empty() || s->quality_history.back().frame_index != s->frame->index)
+          ++violations;
+      }
+    }
+  };
+  std::thread ui_a(reader), ui_b(reader);
+  const auto last = worker.wait_for(settled, 20s);
+  done = true;
+  ui_a.join();
+  ui_b.join();
+  EXPECT_EQ(last->state, WorkerState::Finished);
+  EXPECT_EQ(last->frames_processed, 120);
+  EXPECT_EQ(violations, 0);
+}
+
+TEST(Worker, DestroyingARunningWorkerStopsPromptly) {
+  const auto started = std::chrono::steady_clock::now();
+  {
+    Worker worker({.pacing = Pacing::RecordedSpeed, .loop = true});
+    worker.post(command::SetSource{counting(1000, 1.0)});  // would take 1000 s
+    worker.post(command::Start{});
+    worker.wait_for([](const Snapshot& s) { return s.frames_processed >= 1; }, 5s);
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - started, 5s);
+}
+
+TEST(Worker, IlluminatorPowerIsCarriedIntoSnapshots) {
+  Worker worker;
+  worker.post(command::SetIlluminatorPower{80.0});
+  const auto s = worker.wait_for([](const Snapshot& x) { return x.illuminator_power_w.has_value(); }, 5s);
+  ASSERT_TRUE(s->illuminator_power_w);
+  EXPECT_DOUBLE_EQ(*s->illuminator_power_w, 80.0);
+}
+
+}  // namespace
+}  // namespace nirslam

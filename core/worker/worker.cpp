@@ -240,7 +240,16 @@ void Worker::process_one_frame() {
       recent_completions_.size() > 1 && window_s > 0.0 ? (recent_completions_.size() - 1) / window_s : 0.0;
   next->illuminator_power_w = power_w_;
   next->message = state_ == WorkerState::Paused ? "paused" : "running";
-  if (observer_) observer_(*next);
+  if (observer_) {
+    try {
+      observer_(*next);
+    } catch (const std::exception& e) {
+      // A writer that cannot keep up (full disk) stops processing; frames already written stay.
+      spdlog::error("{}", e.what());
+      next->state = state_ = WorkerState::Failed;
+      next->message = e.what();
+    }
+  }
   publish(std::move(next));
 }
 

@@ -1,0 +1,101 @@
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "app/cli_runner.hpp"
+
+namespace nirslam::testing {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("nirslam_cli_" + name);
+  fs::remove_all(dir);
+  return dir;
+}
+
+std::vector<std::string> lines_of(const fs::path& file) {
+  std::ifstream in(file);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+TEST(RunCommand, DemoWritesOneCsvRowPerFrameAndASummary) {
+  const fs::path out = fresh_dir("demo");
+  const CommandResult r = run_command(nirslam("run demo --max-frames 20 --out '" + out.string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto rows = lines_of(out / "quality.csv");
+  ASSERT_EQ(rows.size(), 21u);
+  EXPECT_EQ(rows[0].rfind("frame_index,timestamp_s,exposure_ms,illuminator_power_w,entropy_bits", 0), 0u);
+  EXPECT_EQ(rows[1].rfind("0,0.000000000,10.000000,50.000000,", 0), 0u) << rows[1];
+  std::ifstream summary_file(out / "summary.json");
+  const auto summary = nlohmann::json::parse(summary_file);
+  EXPECT_EQ(summary["frames_processed"], 20);
+  EXPECT_EQ(summary["state"], "finished");
+  EXPECT_GT(summary["mean_entropy_bits"].get<double>(), 5.0);  // a textured scene, not a blank image
+  EXPECT_NE(r.output.find(out.string()), std::string::npos) << "says where the output went\n" << r.output;
+}
+
+TEST(RunCommand, RealEurocSequenceKeepsItsTimestamps) {
+  const fs::path out = fresh_dir("euroc");
+  const fs::path dataset = fs::path(NIRSLAM_SHARED_DATA_DIR) / "euroc_v1_01_micro";
+  const CommandResult r = run_command(nirslam("run '" + dataset.string() + "' --out '" + out.string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto rows = lines_of(out / "quality.csv");
+  ASSERT_EQ(rows.size(), 96u);  // header + 95 frames
+  EXPECT_EQ(rows[1].rfind("0,1403715273.262142", 0), 0u) << rows[1];
+  EXPECT_EQ(rows[95].rfind("94,1403715277.962142", 0), 0u) << rows[95];
+}
+
+TEST(RunCommand, MissingDatasetIsNamed) {
+  const CommandResult r = run_command(nirslam("run /no/such/dataset --out '" + fresh_dir("missing").string() + "'"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("/no/such/dataset"), std::string::npos) << r.output;
+}
+
+TEST(RunCommand, FullDiskStopsWithAClearMessage) {
+  // /dev/full fails every write with ENOSPC, as a full disk does.
+  const fs::path out = fresh_dir("full");
+  fs::create_directories(out);
+  fs::create_symlink("/dev/full", out / "quality.csv");
+  const CommandResult r = run_command(nirslam("run demo --max-frames 5 --out '" + out.string() + "'"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("quality.csv"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("No space left on device"), std::string::npos) << r.output;
+}
+
+TEST(RunCommand, WriteFailureMidStreamKeepsTheRowsAlreadyWritten) {
+  // A 4 KiB file-size limit lets about 40 rows through, then every write fails (EFBIG), as a disk
+  // filling up during a run would. SIGXFSZ is ignored so the write returns an error instead.
+  const fs::path out = fresh_dir("limit");
+  const CommandResult r = run_command("bash -c \"trap '' XFSZ; ulimit -f 4; " +
+                                      nirslam("run demo --max-frames 200 --out '" + out.string() + "'") + "\"");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("quality.csv: cannot write"), std::string::npos) << r.output;
+  const auto rows = lines_of(out / "quality.csv");
+  ASSERT_GT(rows.size(), 10u);
+  ASSERT_LT(rows.size(), 200u);
+  // Every complete row is intact and in order; at most the row being written is cut.
+  for (std::size_t i = 1; i + 1 < rows.size(); ++i)
+    EXPECT_EQ(rows[i].rfind(std::to_string(i - 1) + ",", 0), 0u) << rows[i];
+}
+
+TEST(Cli, VersionAndHelp) {
+  const CommandResult version = run_command(nirslam("--version"));
+  EXPECT_EQ(version.exit_code, 0);
+  EXPECT_NE(version.output.find("nirslam 0."), std::string::npos) << version.output;
+  const CommandResult help = run_command(nirslam("--help"));
+  EXPECT_EQ(help.exit_code, 0);
+  for (const char* sub : {"gui", "run", "entropy"})
+    EXPECT_NE(help.output.find(sub), std::string::npos) << sub << "\n" << help.output;
+}
+
+}  // namespace
+}  // namespace nirslam::testing

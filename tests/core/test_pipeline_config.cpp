@@ -1,0 +1,71 @@
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "nirslam/common/error.hpp"
+#include "nirslam/config/pipeline_config.hpp"
+
+namespace nirslam {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path write_yaml(const std::string& name, const std::string& text) {
+  const fs::path file = fs::temp_directory_path() / ("nirslam_config_" + name + ".yaml");
+  std::ofstream(file) << text;
+  return file;
+}
+
+std::string error_of(const fs::path& file) {
+  try {
+    load_pipeline_config(file);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(PipelineConfig, ShippedDefaultFileLoads) {
+  const PipelineConfig config =
+      load_pipeline_config(fs::path(NIRSLAM_TEST_DATA_DIR) / "../../config/pipeline.yaml");
+  EXPECT_EQ(config.worker.history_length, 600u);
+  EXPECT_EQ(config.worker.pacing, Pacing::AsFastAsPossible);
+  EXPECT_EQ(config.demo.width, 640);
+  EXPECT_EQ(config.demo.frame_count, 900);
+  EXPECT_DOUBLE_EQ(config.demo.illuminator_power_w, 50.0);
+}
+
+TEST(PipelineConfig, MissingKeysKeepDefaults) {
+  const PipelineConfig config = load_pipeline_config(write_yaml("partial", "demo:\n  fps: 20\n"));
+  EXPECT_DOUBLE_EQ(config.demo.fps, 20.0);
+  EXPECT_EQ(config.demo.width, DemoOptions{}.width);
+  EXPECT_EQ(config.worker.history_length, WorkerOptions{}.history_length);
+}
+
+TEST(PipelineConfig, ErrorsNameFileLineAndField) {
+  const fs::path typo = write_yaml("typo", "demo:\n  width: 640\n  hieght: 480\n");
+  EXPECT_EQ(error_of(typo), typo.string() + ":3: field 'demo.hieght': unknown key");
+
+  const fs::path type = write_yaml("type", "worker:\n  history_length: lots\n");
+  EXPECT_NE(error_of(type).find(":2: field 'worker.history_length': expected a number"), std::string::npos)
+      << error_of(type);
+
+  const fs::path range = write_yaml("range", "demo:\n  width: 10\n");
+  EXPECT_NE(error_of(range).find(":2: field 'demo.width': value 10 outside"), std::string::npos) << error_of(range);
+
+  const fs::path pacing = write_yaml("pacing", "worker:\n  pacing: slow\n");
+  EXPECT_NE(error_of(pacing).find("field 'worker.pacing': expected 'fast' or 'recorded'"), std::string::npos);
+
+  const fs::path section = write_yaml("section", "odometry:\n  points: 2000\n");
+  EXPECT_NE(error_of(section).find(":1: field 'odometry': unknown section"), std::string::npos);
+
+  const fs::path broken = write_yaml("broken", "demo: [1, 2\n");
+  EXPECT_NE(error_of(broken).find("not valid YAML"), std::string::npos) << error_of(broken);
+
+  EXPECT_NE(error_of("/no/such/config.yaml").find("/no/such/config.yaml: cannot open"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace nirslam

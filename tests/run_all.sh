@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Builds and runs every test: a Release build with warnings as errors (unit, UI screenshot and
+# command-line tests), the unit tests under AddressSanitizer + UndefinedBehaviorSanitizer, and the
+# worker tests under ThreadSanitizer. Run from anywhere; needs packaging/install-deps.sh first.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+jobs=$(nproc)
+configure() {  # configure DIR [cmake args...]
+  local dir=$1; shift
+  cmake -S . -B "$dir" -DNIRSLAM_WERROR=ON "$@" > "$dir.configure.log" 2>&1 ||
+    { cat "$dir.configure.log"; return 1; }
+}
+section() { printf '\n=== %s ===\n' "$*"; }
+
+section "Release build, all tests"
+mkdir -p build
+configure build -DCMAKE_BUILD_TYPE=Release
+cmake --build build -j"$jobs"
+ctest --test-dir build --output-on-failure -j"$jobs"
+
+section "AddressSanitizer + UndefinedBehaviorSanitizer: unit tests"
+configure build-asan -DCMAKE_BUILD_TYPE=Debug -DNIRSLAM_SANITIZE=address,undefined -DNIRSLAM_BUILD_UI=OFF
+cmake --build build-asan -j"$jobs" --target nirslam_core_tests nirslam_worker_tests
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
+  ctest --test-dir build-asan --output-on-failure -j"$jobs"
+
+section "ThreadSanitizer: worker tests"
+configure build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DNIRSLAM_SANITIZE=thread -DNIRSLAM_BUILD_UI=OFF
+cmake --build build-tsan -j"$jobs" --target nirslam_worker_tests
+TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 \
+  ctest --test-dir build-tsan --output-on-failure -j"$jobs" -L worker

@@ -18,7 +18,7 @@ double milliseconds_between(std::chrono::steady_clock::time_point from,
 }  // namespace
 
 Worker::Worker(WorkerOptions options) : options_(options) {
-  latest_.store(std::make_shared<const Snapshot>());
+  latest_ = std::make_shared<const Snapshot>();
   thread_ = std::thread([this] { run(); });
 }
 
@@ -39,17 +39,16 @@ void Worker::post(Command command) {
   queue_cv_.notify_one();
 }
 
-std::shared_ptr<const Snapshot> Worker::snapshot() const { return latest_.load(); }
+std::shared_ptr<const Snapshot> Worker::snapshot() const {
+  std::lock_guard lock(latest_mutex_);
+  return latest_;
+}
 
 std::shared_ptr<const Snapshot> Worker::wait_for(const std::function<bool(const Snapshot&)>& done,
                                                  std::chrono::milliseconds timeout) const {
-  std::shared_ptr<const Snapshot> seen = latest_.load();
-  std::unique_lock lock(published_mutex_);
-  published_cv_.wait_for(lock, timeout, [&] {
-    seen = latest_.load();
-    return done(*seen);
-  });
-  return seen;
+  std::unique_lock lock(latest_mutex_);
+  published_cv_.wait_for(lock, timeout, [&] { return done(*latest_); });
+  return latest_;
 }
 
 void Worker::set_observer(FrameObserver observer) {
@@ -139,7 +138,7 @@ void Worker::apply(Command& command) {
           pending_frame_.reset();
           steps_pending_ = 0;
           auto next = std::make_shared<Snapshot>();
-          next->sequence = latest_.load()->sequence + 1;
+          next->sequence = snapshot()->sequence + 1;
           next->illuminator_power_w = power_w_;
           try {
             source_ = c.make();
@@ -223,7 +222,7 @@ void Worker::process_one_frame() {
     recent_completions_.pop_front();
 
   auto next = std::make_shared<Snapshot>();
-  next->sequence = latest_.load()->sequence + 1;
+  next->sequence = snapshot()->sequence + 1;
   next->state = state_ = single_step ? WorkerState::Paused : state_;
   next->source = source_->info();
   next->frame = std::move(frame);
@@ -274,17 +273,19 @@ void Worker::publish_state(WorkerState state, std::string message) {
 }
 
 std::shared_ptr<Snapshot> Worker::copy_of_latest() const {
-  auto next = std::make_shared<Snapshot>(*latest_.load());
+  auto next = std::make_shared<Snapshot>(*snapshot());
   ++next->sequence;
   return next;
 }
 
 void Worker::publish(std::shared_ptr<Snapshot> next) {
-  latest_.store(std::move(next));
-  // Taking the mutex between the store and the notify closes the window in which a waiter has
-  // checked its predicate but not yet started waiting.
-  { std::lock_guard lock(published_mutex_); }
+  std::shared_ptr<const Snapshot> previous = std::move(next);
+  {
+    std::lock_guard lock(latest_mutex_);
+    latest_.swap(previous);
+  }
   published_cv_.notify_all();
+  // `previous` (possibly the last reference to an old frame) is released here, outside the lock.
 }
 
 }  // namespace nirslam

@@ -1,6 +1,5 @@
 #pragma once
 
-#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstddef>
@@ -101,8 +100,11 @@ private:
   std::optional<FrameObserver> incoming_observer_;
   bool exit_requested_ = false;
 
-  std::atomic<std::shared_ptr<const Snapshot>> latest_;
-  mutable std::mutex published_mutex_;  // pairs with published_cv_ for wait_for only
+  // Held only to copy or swap the pointer (never while processing), so snapshot() returns within
+  // nanoseconds whatever the worker is doing. libstdc++ 12's std::atomic<std::shared_ptr> was
+  // tried first; ThreadSanitizer cannot follow its internal lock bit.
+  mutable std::mutex latest_mutex_;
+  std::shared_ptr<const Snapshot> latest_;
   mutable std::condition_variable published_cv_;
   std::thread thread_;  // last: starts after every member above exists
 };

@@ -4,11 +4,11 @@
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
 #include "commands/subcommand.hpp"
+#include "nirslam/common/error.hpp"
+#include "nirslam/image/image_files.hpp"
 #include "nirslam/quality/image_quality.hpp"
 
 namespace nirslam::app {
@@ -23,40 +23,31 @@ struct EntropyOptions {
 int run_entropy(const EntropyOptions& options) {
   int failures = 0;
   if (options.csv)
-    std::printf("file,width,height,bit_depth,entropy_bits,saturated_fraction,black_fraction,converted_from_colour\n");
+    std::printf("file,width,height,bit_depth,entropy_bits,saturated_fraction,black_fraction\n");
   else
     std::printf("%-48s %9s %5s %13s %11s %9s\n", "image", "size", "bits", "entropy[bit]", "saturated%",
                 "black%");
   for (const std::string& file : options.images) {
-    cv::Mat image = cv::imread(file, cv::IMREAD_UNCHANGED);
-    if (image.empty()) {
-      spdlog::error("{}: cannot read image (missing, unreadable or not an image)", file);
+    GreyImageDecoder::Image grey;
+    try {
+      grey = read_grey_image(file);  // colour files are converted, with a warning
+    } catch (const InputError& e) {
+      spdlog::error("{}", e.what());
       ++failures;
       continue;
     }
-    const bool colour = image.channels() > 1;
-    if (colour) cv::cvtColor(image, image, image.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
-    if (image.depth() != CV_8U && image.depth() != CV_16U) {
-      spdlog::error("{}: pixel depth code {} is neither 8- nor 16-bit unsigned", file, image.depth());
-      ++failures;
-      continue;
-    }
-    const int file_depth = image.depth() == CV_8U ? 8 : 16;
-    const int bit_depth = options.bit_depth > 0 ? options.bit_depth : file_depth;
-    if ((file_depth == 8) != (bit_depth == 8)) {
-      spdlog::error("{}: --bit-depth {} does not fit a {}-bit file", file, bit_depth, file_depth);
-      ++failures;
-      continue;
-    }
+    const int bit_depth = grey.bit_depth == 8 ? 8 : (options.bit_depth > 0 ? options.bit_depth : 16);
+    if (grey.bit_depth == 8 && options.bit_depth > 0)
+      spdlog::warn("{}: 8-bit file, --bit-depth {} ignored", file, options.bit_depth);
+    const cv::Mat& image = grey.image;
     const ImageQuality q = measure_quality(image, bit_depth);
     if (options.csv) {
-      std::printf("%s,%d,%d,%d,%.9f,%.9f,%.9f,%d\n", file.c_str(), image.cols, image.rows, bit_depth,
-                  q.entropy_bits, q.saturated_fraction, q.black_fraction, colour ? 1 : 0);
+      std::printf("%s,%d,%d,%d,%.9f,%.9f,%.9f\n", file.c_str(), image.cols, image.rows, bit_depth,
+                  q.entropy_bits, q.saturated_fraction, q.black_fraction);
     } else {
       const std::string size = std::to_string(image.cols) + "x" + std::to_string(image.rows);
-      std::printf("%-48s %9s %5d %13.6f %11.3f %9.3f%s\n", file.c_str(), size.c_str(), bit_depth,
-                  q.entropy_bits, 100.0 * q.saturated_fraction, 100.0 * q.black_fraction,
-                  colour ? "  (colour converted to grey)" : "");
+      std::printf("%-48s %9s %5d %13.6f %11.3f %9.3f\n", file.c_str(), size.c_str(), bit_depth,
+                  q.entropy_bits, 100.0 * q.saturated_fraction, 100.0 * q.black_fraction);
     }
   }
   return failures == 0 ? 0 : 1;

@@ -1,0 +1,238 @@
+#include "nirslam/sources/tum_monovo_reader.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include <spdlog/spdlog.h>
+#include <zip.h>
+
+#include "nirslam/common/error.hpp"
+
+namespace nirslam {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::optional<double> parse_double(std::string_view token) {
+  if (!token.empty() && token.front() == '+') token.remove_prefix(1);
+  double value = 0.0;
+  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
+  if (error != std::errc() || end != token.data() + token.size() || !std::isfinite(value))
+    return std::nullopt;
+  return value;
+}
+
+std::optional<long long> parse_integer(std::string_view token) {
+  long long value = 0;
+  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
+  if (token.empty() || error != std::errc() || end != token.data() + token.size())
+    return std::nullopt;
+  return value;
+}
+
+}  // namespace
+
+void require_time_order(const std::vector<TimesEntry>& entries, const fs::path& file) {
+  for (std::size_t i = 1; i < entries.size(); ++i)
+    if (entries[i].timestamp_s < entries[i - 1].timestamp_s)
+      throw InputError(file, entries[i].line,
+                       "timestamp goes backwards (line " + std::to_string(entries[i - 1].line) +
+                           " has a later one)");
+}
+
+std::vector<TimesEntry> read_times_file(const fs::path& file) {
+  std::ifstream in(file);
+  if (!in) throw InputError(file, fs::exists(file) ? "cannot open times file" : "times file is missing");
+  std::vector<TimesEntry> entries;
+  int number = 0;
+  for (std::string text; std::getline(in, text);) {
+    ++number;
+    std::istringstream stream(text);
+    std::vector<std::string> tokens;
+    for (std::string token; stream >> token;) tokens.push_back(token);
+    if (tokens.empty() || tokens.front().front() == '#') continue;
+    if (tokens.size() < 2 || tokens.size() > 3)
+      throw InputError(file, number,
+                       "expected 'id timestamp_s [exposure_ms]', got " +
+                           std::to_string(tokens.size()) + " column(s)");
+    TimesEntry entry;
+    entry.id = tokens[0];
+    entry.line = number;
+    const std::optional<double> timestamp = parse_double(tokens[1]);
+    if (!timestamp)
+      throw InputError(file, number, "timestamp '" + tokens[1] + "' is not a number");
+    entry.timestamp_s = *timestamp;
+    if (tokens.size() == 3) {
+      const std::optional<double> exposure = parse_double(tokens[2]);
+      if (!exposure) throw InputError(file, number, "exposure '" + tokens[2] + "' is not a number");
+      if (!(*exposure > 0.0))
+        throw InputError(file, number,
+                         "exposure must be positive milliseconds (leave the column out when unknown)");
+      entry.exposure_ms = *exposure;
+    }
+    entries.push_back(std::move(entry));
+  }
+  if (in.bad()) throw InputError(file, "read error");
+  return entries;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+// The image members of a zip archive, in natural name order, read one at a time.
+class TumMonoVoReader::ZipArchive {
+public:
+  explicit ZipArchive(const fs::path& file) : file_(file) {
+    int error_code = 0;
+    archive_ = zip_open(file.c_str(), ZIP_RDONLY, &error_code);
+    if (archive_ == nullptr) {
+      zip_error_t error;
+      zip_error_init_with_code(&error, error_code);
+      const std::string message = zip_error_strerror(&error);
+      zip_error_fini(&error);
+      throw InputError(file, "cannot open zip archive: " + message);
+    }
+    const zip_int64_t count = zip_get_num_entries(archive_, 0);
+    for (zip_int64_t i = 0; i < count; ++i) {
+      const char* name = zip_get_name(archive_, static_cast<zip_uint64_t>(i), 0);
+      if (name == nullptr) continue;
+      const std::string member(name);
+      if (member.empty() || member.back() == '/' || !is_image_file_name(member)) continue;
+      members_.push_back(Member{static_cast<zip_uint64_t>(i), member});
+    }
+    std::sort(members_.begin(), members_.end(),
+              [](const Member& a, const Member& b) { return natural_less(a.name, b.name); });
+  }
+  ~ZipArchive() { zip_discard(archive_); }  // opened read-only: nothing to write back
+  ZipArchive(const ZipArchive&) = delete;
+  ZipArchive& operator=(const ZipArchive&) = delete;
+
+  std::size_t size() const { return members_.size(); }
+  const std::string& name(std::size_t k) const { return members_[k].name; }
+  // How a member is named in messages: the archive's path followed by the member's name.
+  fs::path member_path(std::size_t k) const { return file_ / members_[k].name; }
+
+  std::vector<unsigned char> read(std::size_t k) const {
+    const Member& member = members_[k];
+    zip_stat_t stat;
+    zip_stat_init(&stat);
+    if (zip_stat_index(archive_, member.index, 0, &stat) != 0 || (stat.valid & ZIP_STAT_SIZE) == 0)
+      throw InputError(member_path(k), "cannot read zip member: " + std::string(zip_strerror(archive_)));
+    constexpr zip_uint64_t kMaxImageBytes = zip_uint64_t{1} << 30;  // a corrupt header, not a frame
+    if (stat.size > kMaxImageBytes)
+      throw InputError(member_path(k), "zip member claims " + std::to_string(stat.size) + " bytes");
+    zip_file_t* handle = zip_fopen_index(archive_, member.index, 0);
+    if (handle == nullptr)
+      throw InputError(member_path(k), "cannot open zip member: " + std::string(zip_strerror(archive_)));
+    std::vector<unsigned char> bytes(static_cast<std::size_t>(stat.size));
+    const zip_int64_t read = bytes.empty() ? 0 : zip_fread(handle, bytes.data(), stat.size);
+    std::string message;
+    if (read < 0) message = zip_file_strerror(handle);
+    zip_fclose(handle);
+    if (read < 0) throw InputError(member_path(k), "cannot read zip member: " + message);
+    if (static_cast<zip_uint64_t>(read) != stat.size)
+      throw InputError(member_path(k), "zip member is truncated");
+    return bytes;
+  }
+
+private:
+  struct Member {
+    zip_uint64_t index;
+    std::string name;
+  };
+  fs::path file_;
+  zip_t* archive_ = nullptr;
+  std::vector<Member> members_;
+};
+
+// ---------------------------------------------------------------------------------------------
+
+TumMonoVoReader::TumMonoVoReader(const fs::path& folder) : folder_(folder) {
+  if (!fs::exists(folder)) throw InputError(folder, "folder does not exist");
+  if (!fs::is_directory(folder)) throw InputError(folder, "is not a folder");
+
+  // The frames: images/ first (what the TUM archives unpack to), else images.zip.
+  std::size_t image_count = 0;
+  std::string images_origin;
+  if (fs::is_directory(folder / "images")) {
+    image_files_ = list_image_files(folder / "images");
+    image_count = image_files_.size();
+    images_origin = (folder / "images").string();
+  } else if (fs::is_regular_file(folder / "images.zip")) {
+    archive_ = std::make_unique<ZipArchive>(folder / "images.zip");
+    image_count = archive_->size();
+    images_origin = (folder / "images.zip").string();
+  } else {
+    throw InputError(folder, "not a TUM monoVO folder: it has neither images/ nor images.zip");
+  }
+  if (image_count == 0) throw InputError(images_origin, "holds no image files");
+
+  const fs::path times_file = folder / "times.txt";
+  if (!fs::exists(times_file))
+    throw InputError(times_file,
+                     "missing: a TUM monoVO folder needs 'id timestamp_s [exposure_ms]' per image "
+                     "(to read the images without timestamps, open the images folder itself)");
+  times_ = read_times_file(times_file);
+  require_time_order(times_, times_file);
+  if (times_.size() != image_count)
+    throw InputError(times_file, "has " + std::to_string(times_.size()) + " timestamp lines but " +
+                                     images_origin + " has " + std::to_string(image_count) +
+                                     " images");
+  // Lines pair with images by order. When both the id and the file name are numbers they must
+  // agree: a gap or a stray file would otherwise shift every timestamp silently.
+  for (std::size_t i = 0; i < image_count; ++i) {
+    const std::string image_name = archive_ ? archive_->name(i) : image_files_[i].filename().string();
+    const std::optional<long long> id = parse_integer(times_[i].id);
+    const std::optional<long long> number = parse_integer(fs::path(image_name).stem().string());
+    if (id && number && *id != *number)
+      throw InputError(times_file, times_[i].line,
+                       "id " + times_[i].id + " does not match image " + image_name +
+                           " (times.txt lines pair with the images in name order)");
+  }
+
+  calibration_ = read_optional_dso_camera(folder / "camera.txt");
+  if (calibration_) {
+    decoder_.expect_size(calibration_->input->width(), calibration_->input->height(),
+                         (folder / "camera.txt").string());
+  } else {
+    spdlog::warn("{}: no camera.txt; the sequence has no geometric calibration", folder.string());
+  }
+  if (fs::exists(folder / "pcalib.txt")) pcalib_file_ = folder / "pcalib.txt";
+  if (fs::exists(folder / "vignette.png")) vignette_file_ = folder / "vignette.png";
+
+  std::vector<double> timestamps;
+  for (const TimesEntry& entry : times_) timestamps.push_back(entry.timestamp_s);
+  info_.kind = "tum";
+  info_.description = folder.string();
+  info_.frame_count = image_count;
+  info_.live = false;
+  info_.nominal_fps = frame_rate_from_timestamps(timestamps);
+}
+
+TumMonoVoReader::~TumMonoVoReader() = default;
+
+std::shared_ptr<const CameraModel> TumMonoVoReader::camera() const {
+  return calibration_ ? calibration_->input : nullptr;
+}
+
+std::optional<Frame> TumMonoVoReader::next() {
+  if (next_index_ >= times_.size()) return std::nullopt;
+  // Advance first: after a bad frame throws, the next call moves on to the following one.
+  const std::size_t index = next_index_++;
+  GreyImageDecoder::Image decoded =
+      archive_ ? decoder_.decode(archive_->read(index), archive_->member_path(index))
+               : decoder_.read_file(image_files_[index]);
+  Frame frame;
+  frame.image = std::move(decoded.image);
+  frame.bit_depth = decoded.bit_depth;
+  frame.timestamp_s = times_[index].timestamp_s;
+  frame.index = static_cast<std::int64_t>(index);
+  frame.exposure_ms = times_[index].exposure_ms;
+  frame.name = archive_ ? archive_->name(index) : image_files_[index].filename().string();
+  return frame;
+}
+
+}  // namespace nirslam

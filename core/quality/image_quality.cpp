@@ -99,8 +99,9 @@ double entropy_bits(const GreyHistogram& histogram) {
   return std::clamp(entropy, 0.0, 8.0);
 }
 
-ImageQuality measure_quality(const cv::Mat& image, int bit_depth) {
+ImageQuality measure_quality(const cv::Mat& image, int bit_depth, GreyHistogram* histogram) {
   const Scan pixels = scan(image, bit_depth);
+  if (histogram) *histogram = pixels.histogram;
   const double count = static_cast<double>(image.total());
   ImageQuality quality;
   quality.entropy_bits = entropy_bits(pixels.histogram);

@@ -123,6 +123,7 @@ void Worker::apply(Command& command) {
           auto next = copy_of_latest();
           next->frame.reset();
           next->quality = {};
+          next->histogram = {};
           next->quality_history.clear();
           next->frames_processed = 0;
           next->processing_fps = 0.0;
@@ -211,7 +212,8 @@ void Worker::process_one_frame() {
   }
   const auto read_done = Clock::now();
 
-  const ImageQuality quality = measure_quality(*frame);
+  GreyHistogram histogram;
+  const ImageQuality quality = measure_quality(*frame, &histogram);
   const auto quality_done = Clock::now();
 
   history_.push_back({frame->index, frame->timestamp_s, quality});
@@ -227,6 +229,7 @@ void Worker::process_one_frame() {
   next->source = source_->info();
   next->frame = std::move(frame);
   next->quality = quality;
+  next->histogram = histogram;
   next->quality_history.assign(history_.begin(), history_.end());
   next->timings.read_ms = milliseconds_between(started, read_done);
   next->timings.quality_ms = milliseconds_between(read_done, quality_done);

@@ -26,9 +26,11 @@ struct ImageQuality {
   double black_fraction = 0.0;      // pixels at code 0
 };
 
-ImageQuality measure_quality(const cv::Mat& image, int bit_depth);
-inline ImageQuality measure_quality(const Frame& frame) {
-  return measure_quality(frame.image, frame.bit_depth);
+// One pass over the pixels; `histogram`, when given, receives the 256-bin histogram the entropy
+// was computed from (the UI draws it, so it is not computed twice).
+ImageQuality measure_quality(const cv::Mat& image, int bit_depth, GreyHistogram* histogram = nullptr);
+inline ImageQuality measure_quality(const Frame& frame, GreyHistogram* histogram = nullptr) {
+  return measure_quality(frame.image, frame.bit_depth, histogram);
 }
 
 }  // namespace nirslam

@@ -36,6 +36,7 @@ struct Snapshot {
   SourceInfo source;
   std::optional<Frame> frame;  // the latest processed frame
   ImageQuality quality;        // of `frame`
+  GreyHistogram histogram{};   // of `frame`, 256 bins as the entropy uses them
   std::vector<QualitySample> quality_history;  // oldest first, bounded length
   StageTimings timings;
   std::int64_t frames_processed = 0;

@@ -1,0 +1,104 @@
+#include "frontends/headless_frontend.hpp"
+
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+#include "frontends/egl_context.hpp"
+#include "ui/application.hpp"
+#include "ui/gl/shader.hpp"
+#include "ui/ui_context.hpp"
+
+namespace nirslam::app {
+namespace {
+
+bool settled(WorkerState state) { return state == WorkerState::Finished || state == WorkerState::Failed; }
+
+}  // namespace
+
+void check_screenshot_folder(const std::filesystem::path& path) {
+  const auto parent = path.parent_path();
+  std::error_code error;
+  if (!parent.empty() && !std::filesystem::is_directory(parent, error))
+    throw std::runtime_error(fmt::format("cannot write screenshot {}: folder {} does not exist", path.string(),
+                                         parent.string()));
+}
+
+void write_png_rgba(const std::filesystem::path& path, const cv::Mat& rgba) {
+  check_screenshot_folder(path);
+  cv::Mat bgr;
+  cv::cvtColor(rgba, bgr, cv::COLOR_RGBA2BGR);
+  bool written = false;
+  try {
+    written = cv::imwrite(path.string(), bgr, {cv::IMWRITE_PNG_COMPRESSION, 9});
+  } catch (const cv::Exception& e) {
+    throw std::runtime_error(fmt::format("cannot write screenshot {}: {}", path.string(), e.what()));
+  }
+  if (!written) throw std::runtime_error(fmt::format("cannot write screenshot {}", path.string()));
+}
+
+HeadlessResult run_headless(Worker& worker, const HeadlessOptions& options) {
+  if (options.width < 800 || options.height < 500)
+    throw std::invalid_argument(fmt::format("headless size {}x{} is too small for the UI (at least 800x500)",
+                                            options.width, options.height));
+  if (options.screenshot.empty()) throw std::invalid_argument("headless rendering needs a screenshot path");
+  check_screenshot_folder(options.screenshot);  // fail before the work, not after it
+
+  EglContext egl;
+  spdlog::debug("headless OpenGL: {}", egl.description());
+  const auto shader_dir = ui::gl::find_shader_dir();
+  spdlog::debug("shaders from {}", shader_dir.string());
+
+  ui::OffscreenUi offscreen(options.width, options.height);
+  ui::Application app(shader_dir, [&worker](Command c) { worker.post(std::move(c)); });
+
+  HeadlessResult result;
+  result.renderer = egl.description();
+  const auto done = [&](const Snapshot& s) { return s.frames_processed >= options.frames || settled(s.state); };
+
+  using Clock = std::chrono::steady_clock;
+  const auto started = Clock::now();
+  auto last_frame = started;
+  const auto render = [&](const Snapshot& snapshot) {
+    const auto now = Clock::now();
+    const double delta = std::chrono::duration<double>(now - last_frame).count();
+    last_frame = now;
+    offscreen.frame([&] { app.draw(snapshot); }, delta);
+    ++result.ui_frames;
+  };
+
+  worker.post(command::Start{});
+  std::shared_ptr<const Snapshot> shown = worker.snapshot();
+  while (true) {
+    // About 30 UI frames a second while the worker runs, as a window would show them.
+    shown = worker.wait_for(done, std::chrono::milliseconds(33));
+    render(*shown);
+    if (done(*shown)) break;
+    if (Clock::now() - started > options.timeout) {
+      worker.post(command::Pause{});
+      throw std::runtime_error(fmt::format("headless rendering timed out after {} s with {} of {} frames processed",
+                                           std::chrono::duration_cast<std::chrono::seconds>(options.timeout).count(),
+                                           shown->frames_processed, options.frames));
+    }
+  }
+  worker.post(command::Pause{});
+  // The screenshot shows the snapshot that met the target; two more UI frames let every widget
+  // settle on its final size (ImGui measures some text a frame late).
+  render(*shown);
+  render(*shown);
+
+  write_png_rgba(options.screenshot, offscreen.read_rgba());
+  result.screenshot = options.screenshot;
+  result.frames_processed = shown->frames_processed;
+  result.final_state = shown->state;
+  result.message = shown->message;
+  result.reached_frames = shown->frames_processed >= options.frames;
+  return result;
+}
+
+}  // namespace nirslam::app

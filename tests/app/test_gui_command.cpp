@@ -1,0 +1,90 @@
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "app/cli_runner.hpp"
+
+namespace nirslam::testing {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("nirslam_gui_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+double grey_stddev(const cv::Mat& image) {
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(image, mean, stddev);
+  return stddev[0];
+}
+
+TEST(GuiCommand, HeadlessScreenshotShowsTheWholeWindow) {
+  const fs::path shot = fresh_dir("shot") / "gui.png";
+  const CommandResult r =
+      run_command(nirslam("gui --headless --frames 20 --size 960x600 --screenshot '" + shot.string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("Screenshot written to " + shot.string()), std::string::npos) << r.output;
+  const cv::Mat image = cv::imread(shot.string(), cv::IMREAD_GRAYSCALE);
+  ASSERT_FALSE(image.empty());
+  EXPECT_EQ(image.cols, 960);
+  EXPECT_EQ(image.rows, 600);
+  EXPECT_GT(grey_stddev(image), 10.0) << "not a blank image";
+}
+
+TEST(GuiCommand, HeadlessOnRealEurocData) {
+  const fs::path shot = fresh_dir("euroc") / "euroc.png";
+  const fs::path dataset = fs::path(NIRSLAM_SHARED_DATA_DIR) / "euroc_v1_01_micro";
+  const CommandResult r = run_command(nirslam("gui '" + dataset.string() +
+                                              "' --headless --frames 10 --screenshot '" + shot.string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(shot));
+}
+
+TEST(GuiCommand, ErrorsNameWhatIsWrongBeforeAnyWork) {
+  const CommandResult missing = run_command(nirslam("gui /nonexistent --headless"));
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.output.find("/nonexistent"), std::string::npos) << missing.output;
+
+  const CommandResult small = run_command(nirslam("gui --headless --size 100x20"));
+  EXPECT_NE(small.exit_code, 0);
+  EXPECT_NE(small.output.find("800x500"), std::string::npos) << small.output;
+
+  const CommandResult folder = run_command(nirslam("gui --headless --screenshot /missing/x.png"));
+  EXPECT_EQ(folder.exit_code, 1);
+  EXPECT_NE(folder.output.find("/missing"), std::string::npos) << folder.output;
+
+  const CommandResult shaders = run_command("NIRSLAM_SHADER_DIR=/nonexistent " + nirslam("gui --headless"));
+  EXPECT_EQ(shaders.exit_code, 1);
+  EXPECT_NE(shaders.output.find("NIRSLAM_SHADER_DIR"), std::string::npos) << shaders.output;
+}
+
+TEST(GuiCommand, NoEglIsAClearError) {
+  const CommandResult r =
+      run_command("__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent.json " + nirslam("gui --headless --frames 2"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("headless OpenGL (EGL) unavailable"), std::string::npos) << r.output;
+}
+
+// The README's main command on a machine without a display: renders headless and says where.
+TEST(DefaultCommand, WithoutADisplayRendersHeadlessAndSaysWhere) {
+  const fs::path dir = fresh_dir("default");
+  const CommandResult r =
+      run_command("cd '" + dir.string() + "' && env -u DISPLAY -u WAYLAND_DISPLAY " + nirslam(""));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("No display"), std::string::npos) << r.output;
+  const cv::Mat image = cv::imread((dir / "nirslam-demo.png").string(), cv::IMREAD_GRAYSCALE);
+  ASSERT_FALSE(image.empty()) << r.output;
+  EXPECT_EQ(image.cols, 1280);
+  EXPECT_EQ(image.rows, 800);
+  EXPECT_GT(grey_stddev(image), 10.0);
+}
+
+}  // namespace
+}  // namespace nirslam::testing

@@ -1,0 +1,106 @@
+#include "ui/application.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "ui/theme.hpp"
+
+namespace nirslam::ui {
+namespace {
+
+constexpr ImGuiWindowFlags kTileFlags = ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
+                                        ImGuiWindowFlags_NoCollapse | ImGuiWindowFlags_NoSavedSettings |
+                                        ImGuiWindowFlags_NoBringToFrontOnFocus | ImGuiWindowFlags_NoScrollbar |
+                                        ImGuiWindowFlags_NoScrollWithMouse;
+constexpr ImGuiWindowFlags kBarFlags = kTileFlags | ImGuiWindowFlags_NoTitleBar;
+
+bool begin_tile(const char* name, const ScreenRect& rect, ImGuiWindowFlags flags) {
+  ImGui::SetNextWindowPos(rect.min);
+  ImGui::SetNextWindowSize(rect.size());
+  return ImGui::Begin(name, nullptr, flags);
+}
+
+}  // namespace
+
+Application::Application(const std::filesystem::path& shader_dir, CommandSink post)
+    : post_(std::move(post)), feed_(shader_dir) {}
+
+Application::Layout Application::compute_layout(ImVec2 display) const {
+  const ImGuiStyle& style = ImGui::GetStyle();
+  Layout layout;
+  const float w = std::floor(display.x);
+  const float h = std::floor(display.y);
+  float top = 0.0f;
+  float bottom = h;
+  if (panels.controls) {
+    const float bar = std::round(ImGui::GetFrameHeight() + 2.0f * style.WindowPadding.y + 2.0f);
+    layout.controls = {ImVec2(0.0f, 0.0f), ImVec2(w, bar)};
+    top = bar;
+  }
+  if (panels.status) {
+    const float bar = std::round(ImGui::GetTextLineHeight() + 2.0f * 5.0f);
+    layout.status = {ImVec2(0.0f, h - bar), ImVec2(w, h)};
+    bottom = h - bar;
+  }
+  // The measurement column: about a third of the width, readable at any window size.
+  float split = w;
+  if (panels.feed && panels.entropy) {
+    const float column = std::clamp(std::round(0.34f * w), std::min(380.0f, 0.5f * w), 600.0f);
+    split = w - column;
+  } else if (panels.entropy) {
+    split = 0.0f;
+  }
+  if (panels.feed) layout.feed = {ImVec2(0.0f, top), ImVec2(split, bottom)};
+  if (panels.entropy) layout.entropy = {ImVec2(split, top), ImVec2(w, bottom)};
+  return layout;
+}
+
+void Application::draw(const Snapshot& snapshot) {
+  handle_shortcuts(snapshot);
+  layout_ = compute_layout(ImGui::GetIO().DisplaySize);
+
+  if (panels.controls) {
+    ImGui::PushStyleColor(ImGuiCol_WindowBg, to_vec4(rgba(24, 26, 30)));
+    if (begin_tile("##controls", layout_.controls, kBarFlags)) controls_.draw(snapshot, post_);
+    ImGui::End();
+    ImGui::PopStyleColor();
+  }
+  if (panels.feed) {
+    ImGui::PushStyleVar(ImGuiStyleVar_WindowPadding, ImVec2(8.0f, 6.0f));
+    if (begin_tile("Feed###feed", layout_.feed, kTileFlags)) feed_.draw(snapshot);
+    ImGui::End();
+    ImGui::PopStyleVar();
+  }
+  if (panels.entropy) {
+    if (begin_tile("Image quality###entropy", layout_.entropy, kTileFlags)) entropy_.draw(snapshot);
+    ImGui::End();
+  }
+  if (panels.status) {
+    ImGui::PushStyleVar(ImGuiStyleVar_WindowPadding, ImVec2(10.0f, 5.0f));
+    ImGui::PushStyleColor(ImGuiCol_WindowBg, to_vec4(rgba(24, 26, 30)));
+    if (begin_tile("##status", layout_.status, kBarFlags)) status_.draw(snapshot);
+    ImGui::End();
+    ImGui::PopStyleColor();
+    ImGui::PopStyleVar();
+  }
+}
+
+void Application::handle_shortcuts(const Snapshot& snapshot) {
+  const ImGuiIO& io = ImGui::GetIO();
+  if (!post_ || io.WantTextInput) return;
+  const bool has_source = !snapshot.source.kind.empty() || !snapshot.source.description.empty();
+  if (!has_source) return;
+  const int space = ImGui::GetKeyIndex(ImGuiKey_Space);
+  if (space >= 0 && ImGui::IsKeyPressed(space, false)) {
+    if (snapshot.state == WorkerState::Running)
+      post_(command::Pause{});
+    else
+      post_(command::Start{});
+  }
+  // Letters have no ImGuiKey in 1.86; the typed character is layout-aware and backend-neutral.
+  for (const ImWchar c : io.InputQueueCharacters)
+    if ((c == 's' || c == 'S') && snapshot.state != WorkerState::Running) post_(command::Step{});
+}
+
+}  // namespace nirslam::ui

@@ -1,0 +1,122 @@
+#include "ui/panels/control_bar.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <string>
+
+#include <fmt/format.h>
+#include <imgui.h>
+
+#include "ui/theme.hpp"
+#include "ui/widgets.hpp"
+
+namespace nirslam::ui {
+namespace {
+
+void vertical_separator() {
+  ImGui::SameLine(0.0f, 12.0f);
+  const ImVec2 p = ImGui::GetCursorScreenPos();
+  const float h = ImGui::GetFrameHeight();
+  ImGui::GetWindowDrawList()->AddLine(ImVec2(p.x, p.y + 3.0f), ImVec2(p.x, p.y + h - 3.0f), colours::border);
+  ImGui::Dummy(ImVec2(1.0f, h));
+  ImGui::SameLine(0.0f, 12.0f);
+}
+
+}  // namespace
+
+const char* state_label(WorkerState state) {
+  switch (state) {
+    case WorkerState::Idle: return "Idle";
+    case WorkerState::Running: return "Running";
+    case WorkerState::Paused: return "Paused";
+    case WorkerState::Finished: return "Finished";
+    case WorkerState::Failed: return "Failed";
+  }
+  return "Unknown";
+}
+
+unsigned state_colour(WorkerState state) {
+  switch (state) {
+    case WorkerState::Idle: return colours::state_idle;
+    case WorkerState::Running: return colours::state_running;
+    case WorkerState::Paused: return colours::state_paused;
+    case WorkerState::Finished: return colours::state_finished;
+    case WorkerState::Failed: return colours::state_failed;
+  }
+  return colours::state_idle;
+}
+
+void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
+  const bool can_post = static_cast<bool>(post);
+  const WorkerState state = snapshot.state;
+  const bool running = state == WorkerState::Running;
+  const bool has_source = !snapshot.source.kind.empty() || !snapshot.source.description.empty();
+
+  if (icon_button("start", Icon::Play, "Start",
+                  can_post && has_source && !running, "Start or resume processing (Space)"))
+    post(command::Start{});
+  ImGui::SameLine();
+  if (icon_button("pause", Icon::Pause, "Pause", can_post && running, "Pause after the current frame (Space)"))
+    post(command::Pause{});
+  ImGui::SameLine();
+  if (icon_button("step", Icon::Step, "Step", can_post && has_source && !running, "Process exactly one frame (S)"))
+    post(command::Step{});
+  ImGui::SameLine();
+  if (icon_button("stop", Icon::Stop, "Stop", can_post && (running || state == WorkerState::Paused),
+                  "Stop and rewind the source to its first frame"))
+    post(command::Stop{});
+
+  vertical_separator();
+  badge(state_label(state), state_colour(state));
+
+  vertical_separator();
+  ImGui::AlignTextToFramePadding();
+  ImGui::TextColored(to_vec4(colours::text_dim), "Source");
+  ImGui::SameLine();
+  const std::string source =
+      has_source ? (snapshot.source.kind.empty() ? snapshot.source.description
+                                                 : fmt::format("{} · {}", snapshot.source.kind, snapshot.source.description))
+                 : std::string("none");
+
+  // Right side: where the current frame is in a dataset (it restarts when the source loops), or
+  // how many frames a live stream delivered.
+  const std::size_t total = snapshot.source.frame_count.value_or(0);
+  const std::int64_t position = snapshot.frame ? snapshot.frame->index + 1 : 0;
+  const std::string progress = total > 0 ? fmt::format("{} / {}", position, total)
+                                         : fmt::format("{} frames", snapshot.frames_processed);
+  const float progress_text_width = ImGui::CalcTextSize("000000 / 000000").x;
+  const float bar_width = total > 0 ? 160.0f : 0.0f;
+  const float right_width = progress_text_width + (bar_width > 0.0f ? bar_width + 10.0f : 0.0f);
+  const float right_x = ImGui::GetWindowContentRegionMax().x - right_width;
+
+  // The description is clipped so it never runs into the progress readout.
+  const float source_width = std::max(40.0f, right_x - ImGui::GetCursorPosX() - 16.0f);
+  const ImVec2 p = ImGui::GetCursorScreenPos();
+  const float text_y = p.y + ImGui::GetStyle().FramePadding.y;
+  ImGui::Dummy(ImVec2(source_width, ImGui::GetFrameHeight()));
+  if (ImGui::IsItemHovered() && has_source) ImGui::SetTooltip("%s", source.c_str());
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  draw->PushClipRect(p, ImVec2(p.x + source_width, p.y + ImGui::GetFrameHeight()), true);
+  draw->AddText(ImVec2(p.x, text_y), colours::text, source.c_str());
+  draw->PopClipRect();
+
+  ImGui::SameLine(right_x);
+  ImGui::AlignTextToFramePadding();
+  right_aligned_text(progress_text_width, progress.c_str(), colours::text_dim);
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip("Position of the current frame in the sequence; %lld frames processed in this run",
+                      static_cast<long long>(snapshot.frames_processed));
+  if (bar_width > 0.0f) {
+    ImGui::SameLine(0.0f, 10.0f);
+    const float fraction =
+        static_cast<float>(std::clamp(static_cast<double>(position) / static_cast<double>(total), 0.0, 1.0));
+    const ImVec2 bar = ImGui::GetCursorScreenPos();
+    const float h = std::round(ImGui::GetFrameHeight() * 0.4f);
+    const float y = std::round(bar.y + 0.5f * (ImGui::GetFrameHeight() - h));
+    ImGui::Dummy(ImVec2(bar_width, ImGui::GetFrameHeight()));
+    draw->AddRectFilled(ImVec2(bar.x, y), ImVec2(bar.x + bar_width, y + h), colours::frame_bg, 2.0f);
+    draw->AddRectFilled(ImVec2(bar.x, y), ImVec2(bar.x + bar_width * fraction, y + h), colours::accent, 2.0f);
+  }
+}
+
+}  // namespace nirslam::ui

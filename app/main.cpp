@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include "commands/app_config.hpp"
 #include "commands/subcommand.hpp"
 
 int main(int argc, char** argv) {
@@ -15,6 +16,9 @@ int main(int argc, char** argv) {
   cli.require_subcommand(0, 1);
   bool verbose = false;
   cli.add_flag("-v,--verbose", verbose, "Print debug messages");
+  std::string config_file;
+  cli.add_option("--config", config_file, "Pipeline configuration (YAML); default: the shipped config/pipeline.yaml")
+      ->check(CLI::ExistingFile);
 
   nirslam::app::CommandAction action;
   nirslam::app::add_gui_command(cli, action);
@@ -29,6 +33,7 @@ int main(int argc, char** argv) {
   spdlog::set_level(verbose ? spdlog::level::debug : spdlog::level::info);
 
   try {
+    nirslam::app::load_app_config(config_file);
     return action ? action() : nirslam::app::run_default_gui();
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());

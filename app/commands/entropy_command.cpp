@@ -23,14 +23,14 @@ struct EntropyOptions {
 int run_entropy(const EntropyOptions& options) {
   int failures = 0;
   if (options.csv)
-    std::printf("file,width,height,bit_depth,entropy_bits,saturated_fraction,black_fraction\n");
+    std::printf("file,width,height,bit_depth,entropy_bits,saturated_fraction,black_fraction,converted_from_colour\n");
   else
-    std::printf("%-48s %9s %5s %13s %11s %9s\n", "image", "size", "bits", "entropy[bit]", "saturated%",
-                "black%");
+    std::printf("%13s %11s %9s %10s %5s  %s\n", "entropy[bit]", "saturated%", "black%", "size", "bits",
+                "image");
   for (const std::string& file : options.images) {
     GreyImageDecoder::Image grey;
     try {
-      grey = read_grey_image(file);  // colour files are converted, with a warning
+      grey = read_grey_image(file);
     } catch (const InputError& e) {
       spdlog::error("{}", e.what());
       ++failures;
@@ -42,12 +42,13 @@ int run_entropy(const EntropyOptions& options) {
     const cv::Mat& image = grey.image;
     const ImageQuality q = measure_quality(image, bit_depth);
     if (options.csv) {
-      std::printf("%s,%d,%d,%d,%.9f,%.9f,%.9f\n", file.c_str(), image.cols, image.rows, bit_depth,
-                  q.entropy_bits, q.saturated_fraction, q.black_fraction);
+      std::printf("%s,%d,%d,%d,%.9f,%.9f,%.9f,%d\n", file.c_str(), image.cols, image.rows, bit_depth,
+                  q.entropy_bits, q.saturated_fraction, q.black_fraction, grey.converted_from_colour ? 1 : 0);
     } else {
       const std::string size = std::to_string(image.cols) + "x" + std::to_string(image.rows);
-      std::printf("%-48s %9s %5d %13.6f %11.3f %9.3f\n", file.c_str(), size.c_str(), bit_depth,
-                  q.entropy_bits, 100.0 * q.saturated_fraction, 100.0 * q.black_fraction);
+      std::printf("%13.6f %11.3f %9.3f %10s %5d  %s%s\n", q.entropy_bits, 100.0 * q.saturated_fraction,
+                  100.0 * q.black_fraction, size.c_str(), bit_depth, file.c_str(),
+                  grey.converted_from_colour ? "  (colour, measured as grey)" : "");
     }
   }
   return failures == 0 ? 0 : 1;

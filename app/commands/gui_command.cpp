@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "commands/app_config.hpp"
 #include "commands/source_argument.hpp"
 #include "commands/subcommand.hpp"
 #include "frontends/frontend_error.hpp"
@@ -91,7 +92,7 @@ int run_gui(const GuiOptions& options) {
   const SourceFactory factory = source_factory_from_argument(options.source);
   const bool demo = options.source == "demo";
   const bool windowed = !options.headless;
-  WorkerOptions worker_options;
+  WorkerOptions worker_options = app_config().worker;
   // A window shows the sequence at its own pace; headless (and --fast) goes as fast as it can.
   worker_options.pacing = windowed && !options.fast ? Pacing::RecordedSpeed : Pacing::AsFastAsPossible;
   worker_options.loop = options.loop || (windowed && demo);

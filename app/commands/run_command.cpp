@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include "commands/app_config.hpp"
 #include "commands/source_argument.hpp"
 #include "commands/subcommand.hpp"
 #include "nirslam/session/metrics_csv_writer.hpp"
@@ -58,7 +59,9 @@ int run_headless(const RunOptions& options) {
 
   auto csv = std::make_shared<MetricsCsvWriter>(options.out_dir / "quality.csv");
   double entropy_sum = 0.0;  // written by the worker thread, read here once it has settled
-  Worker worker({.pacing = options.recorded_speed ? Pacing::RecordedSpeed : Pacing::AsFastAsPossible});
+  WorkerOptions worker_options = app_config().worker;
+  if (options.recorded_speed) worker_options.pacing = Pacing::RecordedSpeed;
+  Worker worker(worker_options);
   worker.set_observer([csv, &entropy_sum](const Snapshot& s) {
     csv->write(s);
     entropy_sum += s.quality.entropy_bits;
@@ -106,7 +109,8 @@ void add_run_command(CLI::App& parent, CommandAction& action) {
       "run", "Process a sequence headless and write per-frame metrics (quality.csv) and a summary");
   cmd->add_option("source", options->source, kSourceArgumentHelp)->capture_default_str();
   cmd->add_option("-o,--out", options->out_dir, "Output folder")->capture_default_str();
-  cmd->add_flag("--realtime", options->recorded_speed, "Follow the recorded timestamps instead of running flat out");
+  cmd->add_flag("--realtime", options->recorded_speed,
+                "Follow the recorded timestamps instead of running flat out (config: worker.pacing)");
   cmd->add_option("--max-frames", options->max_frames, "Stop after this many frames")->check(CLI::PositiveNumber);
   cmd->callback([options, &action] { action = [options] { return run_headless(*options); }; });
 }

@@ -124,7 +124,8 @@ GreyImageDecoder::Image GreyImageDecoder::to_grey(cv::Mat decoded, const fs::pat
       throw InputError(name, "unsupported image with " + std::to_string(decoded.channels()) +
                                  " channels");
   }
-  if (decoded.channels() > 1 && !warned_colour_) {
+  const bool converted_from_colour = decoded.channels() > 1;
+  if (converted_from_colour && !warned_colour_) {
     // Once per sequence: a NIR camera should deliver grey frames, so say it, but do not flood.
     spdlog::warn("{}: colour image converted to grey (further colour frames convert silently)",
                  name.string());
@@ -141,11 +142,12 @@ GreyImageDecoder::Image GreyImageDecoder::to_grey(cv::Mat decoded, const fs::pat
                                size_text(expected_size_->width, expected_size_->height));
   if (!first_depth_) first_depth_ = bit_depth;
   if (!expected_size_) expect_size(grey.cols, grey.rows, "the first frame (" + name.string() + ")");
-  return Image{grey, bit_depth};
+  return Image{grey, bit_depth, converted_from_colour};
 }
 
 GreyImageDecoder::Image read_grey_image(const fs::path& file) {
   GreyImageDecoder decoder;
+  decoder.warned_colour_ = true;
   return decoder.read_file(file);
 }
 

@@ -87,6 +87,22 @@ TEST(RunCommand, WriteFailureMidStreamKeepsTheRowsAlreadyWritten) {
     EXPECT_EQ(rows[i].rfind(std::to_string(i - 1) + ",", 0), 0u) << rows[i];
 }
 
+TEST(RunCommand, ConfigFileSetsTheDemoSequence) {
+  const fs::path out = fresh_dir("config");
+  fs::create_directories(out);
+  std::ofstream(out / "short.yaml") << "demo:\n  frames: 7\n  width: 320\n  height: 240\n";
+  const CommandResult r = run_command(nirslam("--config '" + (out / "short.yaml").string() + "' run demo --out '" +
+                                              out.string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(lines_of(out / "quality.csv").size(), 8u);
+
+  std::ofstream(out / "typo.yaml") << "demo:\n  frmaes: 7\n";
+  const CommandResult bad = run_command(nirslam("--config '" + (out / "typo.yaml").string() + "' run demo --out '" +
+                                                out.string() + "'"));
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.output.find("typo.yaml:2: field 'demo.frmaes': unknown key"), std::string::npos) << bad.output;
+}
+
 TEST(Cli, VersionAndHelp) {
   const CommandResult version = run_command(nirslam("--version"));
   EXPECT_EQ(version.exit_code, 0);

@@ -1,5 +1,7 @@
 #include "ui/gl/shader.hpp"
 
+#include "nirslam/common/resource_paths.hpp"
+
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -8,12 +10,6 @@
 
 namespace nirslam::ui::gl {
 namespace {
-
-std::filesystem::path executable_dir() {
-  std::error_code error;
-  const auto exe = std::filesystem::read_symlink("/proc/self/exe", error);
-  return error ? std::filesystem::path{} : exe.parent_path();
-}
 
 std::string read_text(const std::filesystem::path& path) {
   std::error_code error;
@@ -63,29 +59,14 @@ GLuint compile(GLenum kind, const std::string& source, const std::string& name) 
 
 }  // namespace
 
-std::vector<std::filesystem::path> shader_dir_candidates() {
-  std::vector<std::filesystem::path> dirs;
-  if (const char* env = std::getenv("NIRSLAM_SHADER_DIR"); env != nullptr && *env != '\0') dirs.emplace_back(env);
-  if (const auto exe_dir = executable_dir(); !exe_dir.empty())
-    dirs.push_back((exe_dir / ".." / NIRSLAM_INSTALLED_SHADER_SUBDIR).lexically_normal());
-  dirs.emplace_back(NIRSLAM_SOURCE_SHADER_DIR);
-  return dirs;
-}
+std::vector<std::filesystem::path> shader_dir_candidates() { return resource_dir_candidates(kShaderFolder); }
 
 std::filesystem::path find_shader_dir() {
-  std::error_code error;
-  if (const char* env = std::getenv("NIRSLAM_SHADER_DIR"); env != nullptr && *env != '\0') {
-    if (!std::filesystem::is_directory(env, error))
-      throw ShaderError(std::string("NIRSLAM_SHADER_DIR is set to ") + env + ", which is not a directory");
-    return env;
+  try {
+    return find_resource_dir(kShaderFolder);
+  } catch (const ResourceNotFound& e) {
+    throw ShaderError(e.what());
   }
-  std::string tried;
-  for (const auto& dir : shader_dir_candidates()) {
-    if (std::filesystem::is_directory(dir, error)) return dir;
-    tried += "\n  " + dir.string();
-  }
-  throw ShaderError("cannot find the shader directory; looked in:" + tried +
-                    "\nset NIRSLAM_SHADER_DIR to the folder that holds image_quad.vert");
 }
 
 Program::~Program() {

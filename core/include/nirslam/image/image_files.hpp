@@ -36,6 +36,7 @@ public:
   struct Image {
     cv::Mat image;
     int bit_depth = 8;
+    bool converted_from_colour = false;
   };
 
   // Every image must have this size; `origin` names where the size came from ("camera.txt").
@@ -46,6 +47,7 @@ public:
   Image decode(const std::vector<unsigned char>& bytes, const std::filesystem::path& name);
 
 private:
+  friend Image read_grey_image(const std::filesystem::path& file);
   Image to_grey(cv::Mat decoded, const std::filesystem::path& name);
 
   std::optional<cv::Size> expected_size_;
@@ -55,7 +57,7 @@ private:
 };
 
 // One image file as a grey image (for commands that look at single images); same rules and
-// errors as GreyImageDecoder.
+// errors as GreyImageDecoder, but no warning for colour: the caller reports converted_from_colour.
 GreyImageDecoder::Image read_grey_image(const std::filesystem::path& file);
 
 }  // namespace nirslam

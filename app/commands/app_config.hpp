@@ -1,0 +1,16 @@
+#pragma once
+
+#include <filesystem>
+
+#include "nirslam/config/pipeline_config.hpp"
+
+namespace nirslam::app {
+
+// The pipeline configuration of this run: `--config FILE` when given, else the shipped
+// config/pipeline.yaml (found like the shaders: $NIRSLAM_CONFIG_DIR, the installed share folder,
+// the source tree), else built-in defaults. main() loads it once after parsing the command line
+// and before any subcommand runs; subcommands only read it.
+void load_app_config(const std::filesystem::path& explicit_file);
+const PipelineConfig& app_config();
+
+}  // namespace nirslam::app

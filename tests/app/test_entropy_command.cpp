@@ -39,7 +39,7 @@ TEST(EntropyCommand, MatchesIndependentReferenceOnRealFrames) {
   const CommandResult ours = run_command(nirslam("entropy --csv" + files));
   ASSERT_EQ(ours.exit_code, 0) << ours.output;
   const CommandResult reference =
-      run_command("python3 '" + std::string(NIRSLAM_TEST_DATA_DIR) + "/../tools/entropy_reference.py'" + files);
+      run_command("python3 '" + std::string(NIRSLAM_SOURCE_DIR) + "/tests/tools/entropy_reference.py'" + files);
   ASSERT_EQ(reference.exit_code, 0) << reference.output;
   for (const auto& f : frames) {
     std::istringstream lines(reference.output);

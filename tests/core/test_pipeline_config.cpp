@@ -29,7 +29,7 @@ std::string error_of(const fs::path& file) {
 
 TEST(PipelineConfig, ShippedDefaultFileLoads) {
   const PipelineConfig config =
-      load_pipeline_config(fs::path(NIRSLAM_TEST_DATA_DIR) / "../../config/pipeline.yaml");
+      load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/pipeline.yaml");
   EXPECT_EQ(config.worker.history_length, 600u);
   EXPECT_EQ(config.worker.pacing, Pacing::AsFastAsPossible);
   EXPECT_EQ(config.demo.width, 640);

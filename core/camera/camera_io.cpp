@@ -13,41 +13,11 @@
 #include <yaml-cpp/yaml.h>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/common/text_fields.hpp"
 
 namespace nirslam {
 
 namespace {
-
-std::string lowercase(std::string_view text) {
-  std::string out(text);
-  std::transform(out.begin(), out.end(), out.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return out;
-}
-
-std::vector<std::string> split_whitespace(const std::string& line) {
-  std::istringstream stream(line);
-  std::vector<std::string> tokens;
-  for (std::string token; stream >> token;) tokens.push_back(token);
-  return tokens;
-}
-
-// A whole token as a finite double, or nothing ("1.5x", "nan" and "" are not numbers).
-std::optional<double> parse_double(std::string_view token) {
-  if (!token.empty() && token.front() == '+') token.remove_prefix(1);
-  double value = 0.0;
-  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
-  if (error != std::errc() || end != token.data() + token.size() || !std::isfinite(value))
-    return std::nullopt;
-  return value;
-}
-
-std::optional<int> parse_int(std::string_view token) {
-  int value = 0;
-  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
-  if (error != std::errc() || end != token.data() + token.size()) return std::nullopt;
-  return value;
-}
 
 struct NumberedLine {
   int number = 0;  // 1-based, as an editor shows it
@@ -68,8 +38,8 @@ std::vector<double> numbers_of(const NumberedLine& line, std::size_t first,
 // "width height", both positive.
 std::pair<int, int> parse_size_line(const NumberedLine& line, const std::filesystem::path& file,
                                     const std::string& what) {
-  const auto width = line.tokens.size() == 2 ? parse_int(line.tokens[0]) : std::nullopt;
-  const auto height = line.tokens.size() == 2 ? parse_int(line.tokens[1]) : std::nullopt;
+  const auto width = line.tokens.size() == 2 ? parse_integer<int>(line.tokens[0]) : std::nullopt;
+  const auto height = line.tokens.size() == 2 ? parse_integer<int>(line.tokens[1]) : std::nullopt;
   if (!width || !height)
     throw InputError(file, line.number, "expected the " + what + " as two integers 'width height'");
   if (*width <= 0 || *height <= 0)
@@ -157,7 +127,8 @@ DsoCameraCalibration parse_dso_camera(std::istream& in, const std::filesystem::p
   int number = 0;
   for (std::string text; std::getline(in, text);) {
     ++number;
-    NumberedLine line{number, split_whitespace(text)};
+    const auto fields = split_blanks(text);
+    NumberedLine line{number, std::vector<std::string>(fields.begin(), fields.end())};
     if (line.tokens.empty() || line.tokens.front().front() == '#') continue;
     lines.push_back(std::move(line));
   }

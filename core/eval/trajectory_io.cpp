@@ -10,6 +10,7 @@
 #include <Eigen/SVD>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/common/text_fields.hpp"
 #include "nirslam/eval/trajectory.hpp"
 #include "nirslam/sources/euroc_reader.hpp"  // seconds_from_nanoseconds
 
@@ -18,39 +19,6 @@ namespace nirslam {
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string_view trim(std::string_view text) {
-  const auto is_space = [](char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; };
-  while (!text.empty() && is_space(text.front())) text.remove_prefix(1);
-  while (!text.empty() && is_space(text.back())) text.remove_suffix(1);
-  return text;
-}
-
-bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
-
-// Fields of a data line: comma-separated when it holds a comma (each field trimmed, empty ones
-// kept so that they can be reported), else blank-separated.
-std::vector<std::string_view> split_fields(std::string_view line) {
-  std::vector<std::string_view> fields;
-  if (line.find(',') != std::string_view::npos) {
-    std::size_t start = 0;
-    while (true) {
-      const std::size_t comma = line.find(',', start);
-      fields.push_back(trim(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
-      if (comma == std::string_view::npos) break;
-      start = comma + 1;
-    }
-    return fields;
-  }
-  std::size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && is_blank(line[i])) ++i;
-    const std::size_t start = i;
-    while (i < line.size() && !is_blank(line[i])) ++i;
-    if (i > start) fields.push_back(line.substr(start, i - start));
-  }
-  return fields;
-}
 
 struct FormatSpec {
   TrajectoryFormat format;

@@ -13,6 +13,7 @@
 #include <spdlog/spdlog.h>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/common/text_fields.hpp"
 
 namespace nirslam {
 
@@ -61,9 +62,7 @@ bool natural_less(std::string_view a, std::string_view b) {
 bool is_image_file_name(const fs::path& name) {
   static constexpr std::array<std::string_view, 9> kExtensions = {
       ".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".pnm", ".bmp", ".tif", ".tiff"};
-  std::string extension = name.extension().string();
-  std::transform(extension.begin(), extension.end(), extension.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string extension = lowercase(name.extension().string());
   return std::find(kExtensions.begin(), kExtensions.end(), extension) != kExtensions.end();
 }
 

@@ -6,19 +6,13 @@
 #include <spdlog/spdlog.h>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/common/text_fields.hpp"
 
 namespace nirslam {
 
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string_view trim(std::string_view text) {
-  const auto is_space = [](char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; };
-  while (!text.empty() && is_space(text.front())) text.remove_prefix(1);
-  while (!text.empty() && is_space(text.back())) text.remove_suffix(1);
-  return text;
-}
 
 // The camera folder (the one holding data.csv) for a dataset root, a mav0 folder or itself.
 fs::path find_camera_folder(const fs::path& path, const std::string& camera) {

@@ -10,31 +10,12 @@
 #include <zip.h>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/common/text_fields.hpp"
 
 namespace nirslam {
 
 namespace fs = std::filesystem;
 
-namespace {
-
-std::optional<double> parse_double(std::string_view token) {
-  if (!token.empty() && token.front() == '+') token.remove_prefix(1);
-  double value = 0.0;
-  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
-  if (error != std::errc() || end != token.data() + token.size() || !std::isfinite(value))
-    return std::nullopt;
-  return value;
-}
-
-std::optional<long long> parse_integer(std::string_view token) {
-  long long value = 0;
-  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
-  if (token.empty() || error != std::errc() || end != token.data() + token.size())
-    return std::nullopt;
-  return value;
-}
-
-}  // namespace
 
 void require_time_order(const std::vector<TimesEntry>& entries, const fs::path& file) {
   for (std::size_t i = 1; i < entries.size(); ++i)
@@ -185,8 +166,8 @@ TumMonoVoReader::TumMonoVoReader(const fs::path& folder) : folder_(folder) {
   // agree: a gap or a stray file would otherwise shift every timestamp silently.
   for (std::size_t i = 0; i < image_count; ++i) {
     const std::string image_name = archive_ ? archive_->name(i) : image_files_[i].filename().string();
-    const std::optional<long long> id = parse_integer(times_[i].id);
-    const std::optional<long long> number = parse_integer(fs::path(image_name).stem().string());
+    const std::optional<long long> id = parse_integer<long long>(times_[i].id);
+    const std::optional<long long> number = parse_integer<long long>(fs::path(image_name).stem().string());
     if (id && number && *id != *number)
       throw InputError(times_file, times_[i].line,
                        "id " + times_[i].id + " does not match image " + image_name +

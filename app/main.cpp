@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   nirslam::app::add_gui_command(cli, action);
   nirslam::app::add_run_command(cli, action);
   nirslam::app::add_entropy_command(cli, action);
+  nirslam::app::add_simulate_command(cli, action);
   nirslam::app::add_eval_command(cli, action);
 
   try {

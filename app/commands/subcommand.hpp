@@ -13,6 +13,7 @@ using CommandAction = std::function<int()>;
 void add_gui_command(CLI::App& parent, CommandAction& action);
 void add_run_command(CLI::App& parent, CommandAction& action);
 void add_entropy_command(CLI::App& parent, CommandAction& action);
+void add_simulate_command(CLI::App& parent, CommandAction& action);
 void add_eval_command(CLI::App& parent, CommandAction& action);
 
 // What `nirslam` with no subcommand does: the GUI on the built-in demo sequence, or the headless

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   nirslam::app::add_entropy_command(cli, action);
   nirslam::app::add_simulate_command(cli, action);
   nirslam::app::add_eval_command(cli, action);
+  nirslam::app::add_advise_command(cli, action);
 
   try {
     cli.parse(argc, argv);

@@ -44,15 +44,19 @@ Application::Layout Application::compute_layout(ImVec2 display) const {
     bottom = h - bar;
   }
   // The measurement column: about a third of the width, readable at any window size.
-  float split = w;
-  if (panels.feed && panels.entropy) {
-    const float column = std::clamp(std::round(0.34f * w), std::min(380.0f, 0.5f * w), 600.0f);
-    split = w - column;
-  } else if (panels.entropy) {
-    split = 0.0f;
-  }
-  if (panels.feed) layout.feed = {ImVec2(0.0f, top), ImVec2(split, bottom)};
+  const float width = std::clamp(std::round(0.34f * w), std::min(380.0f, 0.5f * w), 600.0f);
+  const float split = !panels.entropy ? w : (panels.feed || panels.illumination) ? w - width : 0.0f;
   if (panels.entropy) layout.entropy = {ImVec2(split, top), ImVec2(w, bottom)};
+  // Under the feed, a strip for the illumination panel: wide enough for its metrics and wizard
+  // beside its sweep plot, short enough to leave the feed most of the height.
+  float strip_top = bottom;
+  if (panels.illumination) {
+    const float middle = bottom - top;
+    strip_top = panels.feed ? bottom - std::clamp(std::round(0.36f * middle), std::min(240.0f, std::round(0.45f * middle)), 360.0f)
+                            : top;
+    layout.illumination = {ImVec2(0.0f, strip_top), ImVec2(split, bottom)};
+  }
+  if (panels.feed) layout.feed = {ImVec2(0.0f, top), ImVec2(split, strip_top)};
   return layout;
 }
 
@@ -74,6 +78,10 @@ void Application::draw(const Snapshot& snapshot) {
   }
   if (panels.entropy) {
     if (begin_tile("Image quality###entropy", layout_.entropy, kTileFlags)) entropy_.draw(snapshot);
+    ImGui::End();
+  }
+  if (panels.illumination) {
+    if (begin_tile("Illumination###illumination", layout_.illumination, kTileFlags)) illumination_.draw(snapshot, post_);
     ImGui::End();
   }
   if (panels.status) {

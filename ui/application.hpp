@@ -9,6 +9,7 @@
 #include "ui/panels/control_bar.hpp"
 #include "ui/panels/entropy_panel.hpp"
 #include "ui/panels/feed_panel.hpp"
+#include "ui/panels/illumination_panel.hpp"
 #include "ui/panels/status_bar.hpp"
 #include "ui/widgets.hpp"
 
@@ -19,6 +20,7 @@ struct PanelSet {
   bool controls = true;
   bool feed = true;
   bool entropy = true;
+  bool illumination = true;
   bool status = true;
 };
 
@@ -27,7 +29,8 @@ struct PanelSet {
 //
 // Dear ImGui 1.86 (Debian) has no docking branch, so the layout is a fixed tiling of windows
 // that follows the display size: control strip on top, status line at the bottom, the feed on
-// the left and a column of measurement panels on the right. Nothing overlaps.
+// the left with the illumination strip under it, and the image-quality column on the right.
+// Nothing overlaps.
 class Application {
 public:
   // Loads the panels' shaders from `shader_dir` (see gl::find_shader_dir()); throws
@@ -42,6 +45,7 @@ public:
     ScreenRect controls;
     ScreenRect feed;
     ScreenRect entropy;
+    ScreenRect illumination;
     ScreenRect status;
   };
   // The tiling for a display size with the current ImGui style and font (call inside a frame).
@@ -51,6 +55,7 @@ public:
   PanelSet panels;
   FeedPanel& feed() { return feed_; }
   EntropyPanel& entropy() { return entropy_; }
+  IlluminationPanel& illumination() { return illumination_; }
 
 private:
   void handle_shortcuts(const Snapshot& snapshot);
@@ -59,6 +64,7 @@ private:
   ControlBar controls_;
   FeedPanel feed_;
   EntropyPanel entropy_;
+  IlluminationPanel illumination_;
   StatusBar status_;
   Layout layout_;
 };

@@ -181,15 +181,42 @@ PlotResult draw_plot(const char* id, ImVec2 size, const PlotAxes& axes, std::spa
     const ImVec2 text = ImGui::CalcTextSize(tick_labels[i].c_str());
     draw->AddText(ImVec2(a.min.x - 6.0f - text.x, y - 0.5f * text.y), colours::text_dim, tick_labels[i].c_str());
   }
-  const std::string x_first = format_tick(axes.x_min, 0, "");
-  const std::string x_last = format_tick(axes.x_max, 0, "");
   const float x_label_y = a.max.y + 4.0f;
-  draw->AddText(ImVec2(a.min.x, x_label_y), colours::text_dim, x_first.c_str());
-  draw->AddText(ImVec2(a.max.x - ImGui::CalcTextSize(x_last.c_str()).x, x_label_y), colours::text_dim,
-                x_last.c_str());
-  if (axes.x_caption != nullptr && *axes.x_caption != '\0') {
-    const float caption_width = ImGui::CalcTextSize(axes.x_caption).x;
-    draw->AddText(ImVec2(a.min.x + 0.5f * (a.width() - caption_width), x_label_y), colours::text_dim, axes.x_caption);
+  if (axes.x_ticks.empty()) {
+    const std::string x_first = format_tick(axes.x_min, 0, "");
+    const std::string x_last = format_tick(axes.x_max, 0, "");
+    draw->AddText(ImVec2(a.min.x, x_label_y), colours::text_dim, x_first.c_str());
+    draw->AddText(ImVec2(a.max.x - ImGui::CalcTextSize(x_last.c_str()).x, x_label_y), colours::text_dim,
+                  x_last.c_str());
+    if (axes.x_caption != nullptr && *axes.x_caption != '\0') {
+      const float caption_width = ImGui::CalcTextSize(axes.x_caption).x;
+      draw->AddText(ImVec2(a.min.x + 0.5f * (a.width() - caption_width), x_label_y), colours::text_dim, axes.x_caption);
+    }
+  } else {
+    // Labels centred on their ticks, inside the axis; one that would touch its left neighbour is
+    // left out, except the last, which wins over its neighbour (the axis end must be labelled).
+    struct Label {
+      float x;
+      std::string text;
+      float width;
+    };
+    std::vector<Label> labels;
+    for (double tick : axes.x_ticks) {
+      const float x = std::round(to_screen(tick, axes.y_min).x);
+      if (x < a.min.x - 0.5f || x > a.max.x + 0.5f) continue;
+      draw->AddLine(ImVec2(x, a.min.y), ImVec2(x, a.max.y), colours::grid);
+      std::string text = format_tick(tick, axes.x_decimals, axes.x_unit);
+      const float w = ImGui::CalcTextSize(text.c_str()).x;
+      labels.push_back({std::clamp(x - 0.5f * w, a.min.x, a.max.x - w), std::move(text), w});
+    }
+    constexpr float kGap = 6.0f;
+    std::vector<const Label*> shown;
+    for (const Label& label : labels) {
+      const bool last = &label == &labels.back();
+      while (last && !shown.empty() && shown.back()->x + shown.back()->width + kGap > label.x) shown.pop_back();
+      if (shown.empty() || shown.back()->x + shown.back()->width + kGap <= label.x) shown.push_back(&label);
+    }
+    for (const Label* label : shown) draw->AddText(ImVec2(label->x, x_label_y), colours::text_dim, label->text.c_str());
   }
 
   draw->PushClipRect(a.min, a.max, true);

@@ -65,6 +65,11 @@ struct PlotAxes {
   const char* y_unit = "";      // appended to the y tick labels, e.g. " bits"
   float y_label_width = 0.0f;   // at least this wide, so stacked plots line up
   const char* x_caption = "";   // under the x axis, e.g. "frame"
+  // Values with a vertical grid line and a label, instead of the two end labels and the caption
+  // (put the unit into x_unit).
+  std::vector<double> x_ticks;
+  int x_decimals = 0;
+  const char* x_unit = "";      // appended to the x tick labels, e.g. " W"
 };
 
 struct PlotResult {

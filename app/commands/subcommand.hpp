@@ -15,6 +15,7 @@ void add_run_command(CLI::App& parent, CommandAction& action);
 void add_entropy_command(CLI::App& parent, CommandAction& action);
 void add_simulate_command(CLI::App& parent, CommandAction& action);
 void add_eval_command(CLI::App& parent, CommandAction& action);
+void add_advise_command(CLI::App& parent, CommandAction& action);
 
 // What `nirslam` with no subcommand does: the GUI on the built-in demo sequence, or the headless
 // rendering of it when there is no display.

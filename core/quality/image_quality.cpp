@@ -12,6 +12,8 @@ struct Scan {
   GreyHistogram histogram{};
   std::uint64_t saturated = 0;
   std::uint64_t black = 0;
+  std::uint64_t sum = 0;          // of the (clamped) codes
+  std::uint64_t sum_squares = 0;  // of the (clamped) codes; < 2^64 up to 2^31 pixels of 16 bits
 };
 
 // One pass for the histogram and the clipping counts. Four interleaved partial histograms break
@@ -39,6 +41,11 @@ Scan scan_8bit(const cv::Mat& image) {
   }
   scan.saturated = scan.histogram[255];
   scan.black = scan.histogram[0];
+  // With 8 bits a bin is a code: the moments follow from the 256 counts.
+  for (std::uint64_t code = 0; code < 256; ++code) {
+    scan.sum += code * scan.histogram[code];
+    scan.sum_squares += code * code * scan.histogram[code];
+  }
   return scan;
 }
 
@@ -50,12 +57,18 @@ Scan scan_16bit(const cv::Mat& image, int bit_depth) {
   const auto clamp_code = [top_code](std::uint32_t value) { return value >= top_code ? top_code : value; };
   for (int y = 0; y < image.rows; ++y) {
     const std::uint16_t* row = image.ptr<std::uint16_t>(y);
+    std::uint64_t row_sum = 0;
+    std::uint64_t row_squares = 0;
     for (int x = 0; x < image.cols; ++x) {
       const std::uint32_t value = clamp_code(row[x]);
       ++partial[x & 3][value >> shift];
       scan.saturated += value == top_code;
       scan.black += value == 0;
+      row_sum += value;
+      row_squares += static_cast<std::uint64_t>(value) * value;
     }
+    scan.sum += row_sum;
+    scan.sum_squares += row_squares;
     for (int bin = 0; bin < 256; ++bin) {
       scan.histogram[bin] += partial[0][bin] + partial[1][bin] + partial[2][bin] + partial[3][bin];
     }
@@ -107,6 +120,12 @@ ImageQuality measure_quality(const cv::Mat& image, int bit_depth, GreyHistogram*
   quality.entropy_bits = entropy_bits(pixels.histogram);
   quality.saturated_fraction = static_cast<double>(pixels.saturated) / count;
   quality.black_fraction = static_cast<double>(pixels.black) / count;
+  const double full_scale = static_cast<double>((1u << bit_depth) - 1u);
+  const double mean_code = static_cast<double>(pixels.sum) / count;
+  // E[x^2] - E[x]^2 in double: the cancellation error is ~1e-16 of the squared mean, far below a code.
+  const double variance = std::max(0.0, static_cast<double>(pixels.sum_squares) / count - mean_code * mean_code);
+  quality.mean = mean_code / full_scale;
+  quality.rms_contrast = std::sqrt(variance) / full_scale;
   return quality;
 }
 

@@ -26,12 +26,14 @@ void MetricsCsvWriter::write(const Snapshot& snapshot) {
   if (!snapshot.frame) return;
   const Frame& frame = *snapshot.frame;
   const ImageQuality& q = snapshot.quality;
-  out_ << fmt::format("{},{:.9f},{},{},{:.9f},{:.9f},{:.9f},{:.3f},{:.3f}\n", frame.index,
-                      frame.timestamp_s, optional_number(frame.exposure_ms),
+  const ImageStructure& st = snapshot.structure;
+  out_ << fmt::format("{},{:.9f},{},{},{:.9f},{:.9f},{:.9f},{:.3f},{:.3f},{:.9f},{:.9f},{:.9f},{},{:.6f},{:.6f}\n",
+                      frame.index, frame.timestamp_s, optional_number(frame.exposure_ms),
                       optional_number(frame.illuminator_power_w ? frame.illuminator_power_w
                                                                 : snapshot.illuminator_power_w),
                       q.entropy_bits, q.saturated_fraction, q.black_fraction, snapshot.timings.read_ms,
-                      snapshot.timings.quality_ms)
+                      snapshot.timings.quality_ms, q.mean, q.rms_contrast, st.gradient_energy, st.feature_count,
+                      st.coverage, st.evenness)
        << std::flush;
   check("cannot write");
   ++rows_;

@@ -7,8 +7,29 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "nirslam/illumination/illuminator.hpp"
+
 namespace nirslam {
 namespace {
+
+// The demo's virtual lamp: the operator's power changes the next frame's irradiance.
+class DemoLamp final : public IlluminatorController {
+public:
+  explicit DemoLamp(double power_w) : power_w_(power_w) {
+    capabilities_.min_power_w = 0.0;
+    capabilities_.max_power_w = 150.0;
+    capabilities_.reads_back = true;
+    capabilities_.description = "the demo's virtual illuminator";
+  }
+  const IlluminatorCapabilities& capabilities() const override { return capabilities_; }
+  double set_power(double watts) override { return power_w_ = capabilities_.settable(watts); }
+  std::optional<double> current_power_w() const override { return power_w_; }
+  double power_w() const { return power_w_; }
+
+private:
+  IlluminatorCapabilities capabilities_;
+  double power_w_;
+};
 
 // Albedo texture with structure at several scales (blobs, blocks, edges), so entropy and later the
 // odometry have something to hold on to. Built once, larger than the view, then warped per frame.
@@ -60,6 +81,9 @@ public:
     if (options.width < 64 || options.height < 48)
       throw std::invalid_argument("demo source: image size must be at least 64x48");
     if (options.fps <= 0.0) throw std::invalid_argument("demo source: fps must be positive");
+    if (!(options.illuminator_power_w >= 0.0 && options.illuminator_power_w <= 150.0))
+      throw std::invalid_argument("demo source: illuminator power must be within 0..150 W");
+    lamp_ = std::make_shared<DemoLamp>(options.illuminator_power_w);
     info_.kind = "demo";
     info_.description = "built-in demo: textured wall under a co-located NIR illuminator";
     if (options.frame_count > 0) info_.frame_count = static_cast<std::size_t>(options.frame_count);
@@ -71,6 +95,7 @@ public:
   }
 
   const SourceInfo& info() const override { return info_; }
+  std::shared_ptr<IlluminatorController> illuminator() const override { return lamp_; }
 
   std::optional<Frame> next() override {
     if (options_.frame_count > 0 && index_ >= options_.frame_count) return std::nullopt;
@@ -89,7 +114,8 @@ public:
 
     // Irradiance proportional to power; a gamma-like response maps it to grey values. At 50 W and
     // 10 ms the centre of a bright patch is near the top of the range, as in the paper's rooms.
-    const double gain = options_.illuminator_power_w / 50.0 * options_.exposure_ms / 10.0;
+    const double power_w = lamp_->power_w();
+    const double gain = power_w / 50.0 * options_.exposure_ms / 10.0;
     cv::multiply(albedo_view_, halo_, radiance_, gain);
     noise_rng_.fill(noise_, cv::RNG::NORMAL, 0.0, 0.008);
     radiance_ += noise_;
@@ -103,7 +129,7 @@ public:
     frame.index = index_;
     frame.exposure_ms = options_.exposure_ms;
     frame.gain = 1.0;
-    frame.illuminator_power_w = options_.illuminator_power_w;
+    frame.illuminator_power_w = power_w;
     frame.name = "demo/" + std::to_string(index_);
     ++index_;
     return frame;
@@ -117,6 +143,7 @@ public:
 private:
   DemoOptions options_;
   SourceInfo info_;
+  std::shared_ptr<DemoLamp> lamp_;
   cv::Mat wall_, halo_;
   cv::Mat albedo_view_, radiance_;
   cv::Mat noise_;

@@ -1,6 +1,7 @@
 #include "nirslam/worker/worker.hpp"
 
 #include <exception>
+#include <stdexcept>
 #include <type_traits>
 
 #include <spdlog/spdlog.h>
@@ -17,8 +18,14 @@ double milliseconds_between(std::chrono::steady_clock::time_point from,
 
 }  // namespace
 
-Worker::Worker(WorkerOptions options) : options_(options) {
-  latest_ = std::make_shared<const Snapshot>();
+Worker::Worker(WorkerOptions options)
+    : options_(std::move(options)),
+      meter_(options_.quality),
+      sweep_(options_.illumination),
+      manual_illuminator_(options_.illumination.illuminator) {
+  auto first = std::make_shared<Snapshot>();
+  first->illumination = sweep_.status();
+  latest_ = std::move(first);
   thread_ = std::thread([this] { run(); });
 }
 
@@ -123,7 +130,10 @@ void Worker::apply(Command& command) {
           auto next = copy_of_latest();
           next->frame.reset();
           next->quality = {};
+          next->structure = {};
           next->histogram = {};
+          next->feature_grid = {};
+          next->exposure = {};
           next->quality_history.clear();
           next->frames_processed = 0;
           next->processing_fps = 0.0;
@@ -141,8 +151,12 @@ void Worker::apply(Command& command) {
           auto next = std::make_shared<Snapshot>();
           next->sequence = snapshot()->sequence + 1;
           next->illuminator_power_w = power_w_;
+          source_illuminator_.reset();
           try {
             source_ = c.make();
+            source_illuminator_ = source_->illuminator();
+            if (source_illuminator_) power_w_ = source_illuminator_->current_power_w();
+            next->illuminator_power_w = power_w_;
             next->source = source_->info();
             next->state = state_ = WorkerState::Idle;
             next->message = "source ready: " + source_->info().description;
@@ -151,11 +165,28 @@ void Worker::apply(Command& command) {
             next->message = e.what();
             spdlog::error("cannot open source: {}", e.what());
           }
+          sweep_.set_illuminator(illuminator().capabilities());
+          next->illumination = sweep_.status();
           publish(std::move(next));
         } else if constexpr (std::is_same_v<C, command::SetIlluminatorPower>) {
-          power_w_ = c.watts;
+          std::string message;
+          set_power(c.watts, message);
           auto next = copy_of_latest();
           next->illuminator_power_w = power_w_;
+          next->message = std::move(message);
+          publish(std::move(next));
+        } else if constexpr (std::is_same_v<C, command::Sweep>) {
+          std::string message;
+          const auto* capture = std::get_if<sweep_command::Capture>(&c.action);
+          // The lamp first: a capture at a power that cannot be set does not start.
+          if (capture == nullptr || set_power(capture->power_w, message)) {
+            sweep_.apply(c.action);
+            message = sweep_.status()->message;
+          }
+          auto next = copy_of_latest();
+          next->illuminator_power_w = power_w_;
+          next->illumination = sweep_.status();
+          next->message = std::move(message);
           publish(std::move(next));
         } else if constexpr (std::is_same_v<C, command::SetPacing>) {
           options_.pacing = c.pacing;
@@ -163,6 +194,23 @@ void Worker::apply(Command& command) {
         }
       },
       command);
+}
+
+IlluminatorController& Worker::illuminator() {
+  if (source_illuminator_) return *source_illuminator_;
+  return manual_illuminator_;
+}
+
+bool Worker::set_power(double watts, std::string& message) {
+  try {
+    power_w_ = illuminator().set_power(watts);
+    message = fmt::format("illuminator at {:g} W", *power_w_);
+    return true;
+  } catch (const std::exception& e) {
+    message = e.what();
+    spdlog::warn("{}", e.what());
+    return false;
+  }
 }
 
 std::optional<Worker::Clock::time_point> Worker::pacing_deadline(double timestamp_s) {
@@ -213,10 +261,23 @@ void Worker::process_one_frame() {
   const auto read_done = Clock::now();
 
   GreyHistogram histogram;
-  const ImageQuality quality = measure_quality(*frame, &histogram);
+  FeatureGrid grid;
+  const FrameMetrics metrics = meter_.measure(*frame, &histogram, &grid);
+  const ImageQuality& quality = metrics.quality;
   const auto quality_done = Clock::now();
+  // The power of the frame: as the frame reports it (a lamp the source drives), else as the operator set it.
+  const bool power_from_frame = frame->illuminator_power_w.has_value();
+  sweep_.add_frame(metrics, power_from_frame ? frame->illuminator_power_w : power_w_, power_from_frame);
 
-  history_.push_back({frame->index, frame->timestamp_s, quality});
+  QualitySample sample;
+  sample.frame_index = frame->index;
+  sample.timestamp_s = frame->timestamp_s;
+  sample.quality = quality;
+  sample.gradient_energy = static_cast<float>(metrics.structure.gradient_energy);
+  sample.feature_coverage = static_cast<float>(metrics.structure.coverage);
+  sample.feature_evenness = static_cast<float>(metrics.structure.evenness);
+  sample.feature_count = metrics.structure.feature_count;
+  history_.push_back(sample);
   while (history_.size() > options_.history_length) history_.pop_front();
   ++frames_processed_;
   recent_completions_.push_back(quality_done);
@@ -229,7 +290,11 @@ void Worker::process_one_frame() {
   next->source = source_->info();
   next->frame = std::move(frame);
   next->quality = quality;
+  next->structure = metrics.structure;
   next->histogram = histogram;
+  next->feature_grid = std::move(grid);
+  next->exposure = check_exposure(quality, sweep_.config().exposure);
+  next->illumination = sweep_.status();
   next->quality_history.assign(history_.begin(), history_.end());
   next->timings.read_ms = milliseconds_between(started, read_done);
   next->timings.quality_ms = milliseconds_between(read_done, quality_done);

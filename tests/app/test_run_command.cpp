@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -35,6 +36,11 @@ TEST(RunCommand, DemoWritesOneCsvRowPerFrameAndASummary) {
   ASSERT_EQ(rows.size(), 21u);
   EXPECT_EQ(rows[0].rfind("frame_index,timestamp_s,exposure_ms,illuminator_power_w,entropy_bits", 0), 0u);
   EXPECT_EQ(rows[1].rfind("0,0.000000000,10.000000,50.000000,", 0), 0u) << rows[1];
+  // The image metrics of the illumination advisor close each row.
+  EXPECT_NE(rows[0].find(",mean,rms_contrast,gradient_energy,feature_count,feature_coverage,feature_evenness"),
+            std::string::npos)
+      << rows[0];
+  EXPECT_EQ(std::count(rows[1].begin(), rows[1].end(), ','), std::count(rows[0].begin(), rows[0].end(), ','));
   std::ifstream summary_file(out / "summary.json");
   const auto summary = nlohmann::json::parse(summary_file);
   EXPECT_EQ(summary["frames_processed"], 20);

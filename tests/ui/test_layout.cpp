@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "frontends/headless_frontend.hpp"
+#include "nirslam/config/illumination_config.hpp"
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/worker/worker.hpp"
 #include "ui/application.hpp"
@@ -39,12 +40,13 @@ TEST_F(LayoutTest, TilesFillTheDisplayWithoutOverlapAtAnySize) {
     SCOPED_TRACE(display.x);
     Application::Layout layout;
     offscreen.frame([&] { layout = app.compute_layout(display); });
-    const ScreenRect tiles[] = {layout.controls, layout.feed, layout.entropy, layout.status};
+    const ScreenRect tiles[] = {layout.controls, layout.feed, layout.entropy, layout.illumination, layout.status};
+    constexpr int kTiles = 5;
     float area = 0.0f;
-    for (int i = 0; i < 4; ++i) {
+    for (int i = 0; i < kTiles; ++i) {
       EXPECT_FALSE(tiles[i].empty()) << "tile " << i;
       area += tiles[i].width() * tiles[i].height();
-      for (int j = i + 1; j < 4; ++j) EXPECT_FALSE(overlaps(tiles[i], tiles[j])) << i << " overlaps " << j;
+      for (int j = i + 1; j < kTiles; ++j) EXPECT_FALSE(overlaps(tiles[i], tiles[j])) << i << " overlaps " << j;
     }
     EXPECT_FLOAT_EQ(area, display.x * display.y) << "the tiles cover the display";
     EXPECT_EQ(layout.controls.min.y, 0.0f);
@@ -52,11 +54,20 @@ TEST_F(LayoutTest, TilesFillTheDisplayWithoutOverlapAtAnySize) {
     EXPECT_EQ(layout.feed.max.x, layout.entropy.min.x);
     EXPECT_GT(layout.feed.width(), layout.entropy.width()) << "the feed gets the larger share";
     EXPECT_GE(layout.entropy.width(), 380.0f);
+    // The illumination strip sits under the feed, as wide as it, shorter than it.
+    EXPECT_EQ(layout.illumination.min.y, layout.feed.max.y);
+    EXPECT_EQ(layout.illumination.min.x, layout.feed.min.x);
+    EXPECT_EQ(layout.illumination.max.x, layout.feed.max.x);
+    EXPECT_EQ(layout.illumination.max.y, layout.status.min.y);
+    EXPECT_GE(layout.illumination.height(), std::min(240.0f, std::round(0.45f * (layout.status.min.y - layout.controls.max.y))));
+    EXPECT_GT(layout.feed.height(), layout.illumination.height());
   }
 }
 
 TEST_F(LayoutTest, RendersTheRunningDemoInEveryPanel) {
-  Worker worker({.pacing = Pacing::AsFastAsPossible});
+  WorkerOptions options{.pacing = Pacing::AsFastAsPossible};
+  options.illumination = load_illumination_config(std::filesystem::path(NIRSLAM_SOURCE_DIR) / "config/illumination.yaml");
+  Worker worker(options);
   worker.post(command::SetSource{[] { return make_demo_source(); }});
   OffscreenUi offscreen(1280, 800);
   Application app(gl::find_shader_dir(), [&worker](Command c) { worker.post(std::move(c)); });
@@ -93,6 +104,16 @@ TEST_F(LayoutTest, RendersTheRunningDemoInEveryPanel) {
   EXPECT_GT(shown->quality.entropy_bits, 3.0);
   EXPECT_NEAR(app.entropy().gauge_fill_rect().width() / gauge.width(), shown->quality.entropy_bits / 8.0, 0.005);
   EXPECT_GT(testing::count_colour(shot, app.entropy().entropy_plot_rect(), colours::entropy, 3), 10);
+
+  // The illumination strip shows the live verdict on the demo's well-lit frames (green) and the
+  // prior's recommended power for the default scene on its plot.
+  const ScreenRect& banner = app.illumination().banner_rect();
+  ASSERT_FALSE(banner.empty());
+  EXPECT_TRUE(overlaps(banner, app.layout().illumination));
+  EXPECT_EQ(shown->exposure.verdict, ExposureVerdict::Ok) << shown->exposure.message;
+  EXPECT_TRUE(near(pixel(shot, ImVec2(banner.max.x - 4.0f, banner.centre().y)), colours::banner_ok, 3));
+  EXPECT_FALSE(app.illumination().plot_rect().empty());
+  EXPECT_TRUE(app.illumination().recommended_marker().has_value());
 
   // The control strip's state badge is in the "running" colour, and the status line has text.
   EXPECT_EQ(shown->state, WorkerState::Running);

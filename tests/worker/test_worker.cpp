@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <stdexcept>
@@ -216,6 +217,79 @@ TEST(Worker, IlluminatorPowerIsCarriedIntoSnapshots) {
   const auto s = worker.wait_for([](const Snapshot& x) { return x.illuminator_power_w.has_value(); }, 5s);
   ASSERT_TRUE(s->illuminator_power_w);
   EXPECT_DOUBLE_EQ(*s->illuminator_power_w, 80.0);
+}
+
+TEST(Worker, IlluminatorPowerOutsideTheLampsRangeIsRefused) {
+  Worker worker;  // manual lamp, 0..150 W by default
+  worker.post(command::SetIlluminatorPower{60.0});
+  worker.post(command::SetIlluminatorPower{400.0});
+  const auto s = worker.wait_for(
+      [](const Snapshot& x) { return x.message.find("outside the range") != std::string::npos; }, 5s);
+  EXPECT_NE(s->message.find("400 W outside the range 0..150 W"), std::string::npos) << s->message;
+  ASSERT_TRUE(s->illuminator_power_w);
+  EXPECT_DOUBLE_EQ(*s->illuminator_power_w, 60.0) << "the last accepted power stays";
+}
+
+TEST(Worker, PublishesEveryFrameMetricAndTheExposureVerdict) {
+  Worker worker({.pacing = Pacing::AsFastAsPossible, .history_length = 10});
+  DemoOptions demo;
+  demo.frame_count = 3;
+  worker.post(command::SetSource{[demo] { return make_demo_source(demo); }});
+  worker.post(command::Start{});
+  const auto last = worker.wait_for(settled, 10s);
+  ASSERT_EQ(last->state, WorkerState::Finished) << last->message;
+  EXPECT_GT(last->quality.mean, 0.2);
+  EXPECT_GT(last->quality.rms_contrast, 0.05);
+  EXPECT_GT(last->structure.gradient_energy, 0.0);
+  EXPECT_GT(last->structure.feature_count, 50);
+  EXPECT_EQ(last->feature_grid.counts.size(), 16u * 12u);
+  EXPECT_EQ(last->exposure.verdict, ExposureVerdict::Ok) << last->exposure.message;
+  ASSERT_EQ(last->quality_history.size(), 3u);
+  EXPECT_EQ(last->quality_history.back().feature_count, last->structure.feature_count);
+  EXPECT_FLOAT_EQ(last->quality_history.back().feature_coverage, static_cast<float>(last->structure.coverage));
+  ASSERT_TRUE(last->illumination);
+  EXPECT_EQ(last->illumination->progress.stage, SweepStage::Idle);
+}
+
+// The sweep wizard end to end on the demo, whose virtual lamp follows the power the operator sets:
+// every captured power is the power the frames were taken at, the frames get brighter with it,
+// and the recommendation comes from the sweep once four powers are in.
+TEST(Worker, SweepWizardCapturesEachPowerFromTheDemosLamp) {
+  WorkerOptions options{.pacing = Pacing::AsFastAsPossible, .loop = true};
+  options.illumination.sweep.settle_frames = 1;
+  Worker worker(options);
+  DemoOptions demo;
+  demo.width = 160;
+  demo.height = 120;
+  worker.post(command::SetSource{[demo] { return make_demo_source(demo); }});
+  worker.post(command::Sweep{sweep_command::Start{{0, 25, 50, 100}, 4}});
+  worker.post(command::Start{});
+  for (const double power : {0.0, 25.0, 50.0, 100.0}) {
+    SCOPED_TRACE(power);
+    const auto asked = worker.wait_for(
+        [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 10s);
+    ASSERT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
+    worker.post(command::Sweep{sweep_command::Capture{power}});
+    const auto captured = worker.wait_for(
+        [&](const Snapshot& s) {
+          return s.illumination && s.illumination->progress.stage != SweepStage::Capturing &&
+                 std::any_of(s.illumination->points.begin(), s.illumination->points.end(),
+                             [&](const SweepPoint& p) { return p.power_w == power && p.frames == 4; });
+        },
+        10s);
+    ASSERT_TRUE(captured->frame);
+    EXPECT_EQ(captured->frame->illuminator_power_w, power) << "the demo's lamp follows the operator";
+  }
+  const auto done = worker.wait_for(
+      [](const Snapshot& s) { return s.illumination && s.illumination->progress.stage == SweepStage::Complete; }, 10s);
+  const IlluminationStatus& status = *done->illumination;
+  ASSERT_EQ(status.points.size(), 4u);
+  for (std::size_t i = 1; i < status.points.size(); ++i)
+    EXPECT_GT(status.points[i].mean.mean, status.points[i - 1].mean.mean) << "brighter with power";
+  EXPECT_LT(status.points[0].entropy_bits.mean, status.points[2].entropy_bits.mean);
+  EXPECT_EQ(status.recommendation.source, RecommendationSource::Sweep);
+  EXPECT_GT(status.recommendation.power_w, 0.0);
+  EXPECT_LE(status.recommendation.power_w, 100.0);
 }
 
 }  // namespace

@@ -19,7 +19,8 @@ public:
 
   static constexpr const char* kHeader =
       "frame_index,timestamp_s,exposure_ms,illuminator_power_w,entropy_bits,saturated_fraction,"
-      "black_fraction,read_ms,quality_ms";
+      "black_fraction,read_ms,quality_ms,mean,rms_contrast,gradient_energy,feature_count,feature_coverage,"
+      "feature_evenness";
 
 private:
   void check(const char* what);

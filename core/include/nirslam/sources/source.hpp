@@ -12,6 +12,7 @@
 namespace nirslam {
 
 class CameraModel;
+class IlluminatorController;
 
 struct SourceInfo {
   std::string kind;         // "tum", "euroc", "folder", "demo", "v4l2", "session", ...
@@ -45,6 +46,12 @@ public:
 
   // The geometric camera model, when the source carries a calibration; nullptr otherwise.
   virtual std::shared_ptr<const CameraModel> camera() const { return nullptr; }
+
+  // The illuminator, when the source drives its own (the demo's virtual lamp; the simulator's can
+  // be wired the same way); nullptr otherwise (the operator sets a real lamp by hand). The worker
+  // sends the operator's power to it, and the frames then report the power they were taken at.
+  // Called on the worker thread.
+  virtual std::shared_ptr<IlluminatorController> illuminator() const { return nullptr; }
 };
 
 }  // namespace nirslam

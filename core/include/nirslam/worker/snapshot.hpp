@@ -6,7 +6,10 @@
 #include <string>
 #include <vector>
 
+#include "nirslam/illumination/exposure_check.hpp"
+#include "nirslam/illumination/sweep_recorder.hpp"
 #include "nirslam/image/frame.hpp"
+#include "nirslam/quality/frame_metrics.hpp"
 #include "nirslam/quality/image_quality.hpp"
 #include "nirslam/sources/source.hpp"
 
@@ -15,15 +18,20 @@ namespace nirslam {
 enum class WorkerState { Idle, Running, Paused, Finished, Failed };
 const char* to_string(WorkerState state);
 
+// One frame in the history plots: kept small (72 bytes), as a snapshot copies the whole history.
 struct QualitySample {
   std::int64_t frame_index = 0;
   double timestamp_s = 0.0;
   ImageQuality quality;
+  float gradient_energy = 0.0f;
+  float feature_coverage = 0.0f;
+  float feature_evenness = 0.0f;
+  std::int32_t feature_count = 0;
 };
 
 struct StageTimings {
   double read_ms = 0.0;     // pulling the frame from the source (decode included)
-  double quality_ms = 0.0;  // entropy and clipping
+  double quality_ms = 0.0;  // every frame metric: histogram pass, gradient energy, FAST corners
   double total_ms = 0.0;
 };
 
@@ -36,13 +44,19 @@ struct Snapshot {
   SourceInfo source;
   std::optional<Frame> frame;  // the latest processed frame
   ImageQuality quality;        // of `frame`
+  ImageStructure structure{};  // of `frame`: sharpness and corner features
   GreyHistogram histogram{};   // of `frame`, 256 bins as the entropy uses them
+  FeatureGrid feature_grid{};  // of `frame`: FAST corners per grid cell
+  ExposureCheck exposure{};    // of `frame`: clipped / too dark / fine, for the warning banner
   std::vector<QualitySample> quality_history;  // oldest first, bounded length
   StageTimings timings;
   std::int64_t frames_processed = 0;
   std::int64_t frames_dropped = 0;  // live sources only: frames skipped because the pipeline lagged
   double processing_fps = 0.0;      // frames per second over the last second of processing
   std::optional<double> illuminator_power_w;  // the power the operator set, when set
+  // The power sweep wizard, the sweeps and the power recommendation. Shared between snapshots
+  // until it changes; never null in snapshots the worker publishes.
+  std::shared_ptr<const IlluminationStatus> illumination;
   std::string message;              // last status or error, for the operator
 };
 

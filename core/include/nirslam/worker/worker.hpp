@@ -13,6 +13,10 @@
 #include <thread>
 #include <variant>
 
+#include "nirslam/config/illumination_config.hpp"
+#include "nirslam/illumination/illuminator.hpp"
+#include "nirslam/illumination/sweep_recorder.hpp"
+#include "nirslam/quality/frame_metrics.hpp"
 #include "nirslam/sources/source.hpp"
 #include "nirslam/worker/snapshot.hpp"
 
@@ -29,6 +33,8 @@ struct WorkerOptions {
   Pacing pacing = Pacing::AsFastAsPossible;
   std::size_t history_length = 600;  // quality samples kept in each snapshot
   bool loop = false;                 // restart the source at its end instead of finishing
+  QualityOptions quality{};          // FAST threshold and coverage grid of the per-frame metrics
+  IlluminationConfig illumination = default_illumination_config();  // advisor, sweep plan, priors
 };
 
 namespace command {
@@ -38,13 +44,19 @@ struct Step {};                    // process exactly one frame, then stay pause
 struct Stop {};                    // stop and rewind the source; the last snapshot stays
 struct Reset {};                   // rewind and clear history
 struct SetSource { SourceFactory make; };  // replace the source (opened on the worker thread)
+// Sets the illuminator: the source's own lamp when it has one (simulator, demo), else the manual
+// controller records the power the operator set by hand. Out-of-range powers are refused with a
+// message.
 struct SetIlluminatorPower { double watts; };
 struct SetPacing { Pacing pacing; };
+// The power sweep wizard (illumination/sweep_recorder.hpp). A Capture also sets the illuminator to
+// its power first, as SetIlluminatorPower does.
+struct Sweep { SweepCommand action; };
 }  // namespace command
 
 using Command = std::variant<command::Start, command::Pause, command::Step, command::Stop,
                              command::Reset, command::SetSource, command::SetIlluminatorPower,
-                             command::SetPacing>;
+                             command::SetPacing, command::Sweep>;
 
 // Owns a source and the pipeline in its own thread. The UI (or a headless writer) posts commands
 // and reads the latest immutable snapshot; neither call waits for frame processing.
@@ -80,6 +92,8 @@ private:
   void publish(std::shared_ptr<Snapshot> next);
   std::shared_ptr<Snapshot> copy_of_latest() const;
   std::optional<Clock::time_point> pacing_deadline(double timestamp_s);
+  IlluminatorController& illuminator();
+  bool set_power(double watts, std::string& message);
 
   // Touched by the worker thread only.
   WorkerOptions options_;
@@ -88,6 +102,10 @@ private:
   WorkerState state_ = WorkerState::Idle;
   int steps_pending_ = 0;  // Step commands not yet served
   std::optional<double> power_w_;
+  QualityMeter meter_;
+  SweepRecorder sweep_;
+  ManualIlluminator manual_illuminator_;
+  std::shared_ptr<IlluminatorController> source_illuminator_;  // the source's own lamp, if any
   std::int64_t frames_processed_ = 0;
   std::deque<QualitySample> history_;
   std::deque<Clock::time_point> recent_completions_;

@@ -1,0 +1,274 @@
+// The illumination panel rendered headless: the warning banner's colour follows the frame's
+// verdict, the fitted curve lies where the fit puts it, the recommended point is marked on it, the
+// measured points are drawn; and a sweep recorded by the worker on the demo's lamp, end to end.
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <variant>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "nirslam/config/illumination_config.hpp"
+#include "nirslam/illumination/sweep_recorder.hpp"
+#include "nirslam/sources/demo_source.hpp"
+#include "nirslam/worker/worker.hpp"
+#include "ui/panels/illumination_panel.hpp"
+#include "ui/ui_test_support.hpp"
+
+namespace nirslam::ui {
+namespace {
+
+using namespace std::chrono_literals;
+using testing::full_window;
+using testing::near;
+using testing::pixel;
+
+IlluminationConfig shipped_config() {
+  return load_illumination_config(std::filesystem::path(NIRSLAM_SOURCE_DIR) / "config/illumination.yaml");
+}
+
+// A frame with texture; `saturated` of its rows at 255, or all of it dark.
+Frame textured_frame(double saturated_rows, bool dark) {
+  Frame frame;
+  frame.image = cv::Mat(240, 320, CV_8UC1);
+  cv::RNG rng(3);
+  rng.fill(frame.image, cv::RNG::UNIFORM, dark ? 0 : 40, dark ? 12 : 220);
+  frame.image.rowRange(0, static_cast<int>(saturated_rows * 240)).setTo(255);
+  frame.index = 41;
+  frame.illuminator_power_w = 70.0;
+  return frame;
+}
+
+// What the worker publishes for `frame`, with the illumination status `status`.
+Snapshot snapshot_of(Frame frame, std::shared_ptr<const IlluminationStatus> status, const ExposureLimits& limits) {
+  Snapshot s = testing::snapshot_with_frame(frame);
+  QualityMeter meter;
+  const FrameMetrics m = meter.measure(frame, &s.histogram, &s.feature_grid);
+  s.quality = m.quality;
+  s.structure = m.structure;
+  s.exposure = check_exposure(m.quality, limits);
+  s.illuminator_power_w = frame.illuminator_power_w;
+  s.illumination = std::move(status);
+  return s;
+}
+
+const SaturationCurve kCurve{2.2, 7.3, 24.0};
+
+// A sweep of the room at the plan's powers, 10 frames each, entropy on kCurve with a little scatter.
+std::shared_ptr<const IlluminationStatus> swept_status() {
+  SweepRecorder recorder(shipped_config());
+  recorder.apply(sweep_command::Start{{}, 10});
+  const std::vector<double> powers = recorder.status()->plan.powers_w;  // a copy: the status is replaced
+  for (const double power : powers) {
+    recorder.apply(sweep_command::Capture{power});
+    for (int i = 0; i < 10; ++i) {
+      FrameMetrics m;
+      m.quality.entropy_bits = kCurve(power) + 0.02 * std::sin(1.7 * i + power);
+      m.quality.saturated_fraction = std::max(0.0, (power - 100.0) * 0.0004);
+      recorder.add_frame(m, power, true);
+    }
+  }
+  return recorder.status();
+}
+
+class IlluminationPanelTest : public testing::HeadlessGlTest {
+protected:
+  cv::Mat render(int width, int height, IlluminationPanel& panel, const Snapshot& snapshot, const char* name = nullptr) {
+    ui_.reset();  // one ImGui context at a time
+    ui_ = std::make_unique<OffscreenUi>(width, height);
+    for (int i = 0; i < 2; ++i) ui_->frame([&] { full_window([&] { panel.draw(snapshot, {}); }); });
+    cv::Mat shot = ui_->read_rgba();
+    testing::save_if_requested(shot, name ? name : ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    return shot;
+  }
+  void TearDown() override {
+    ui_.reset();
+    HeadlessGlTest::TearDown();
+  }
+
+  // The screen position of (power, entropy) in the plot (x from 0 to the lamp's 150 W, y 0..8 bits).
+  static ImVec2 at(const ScreenRect& plot, double power_w, double bits) {
+    return ImVec2(plot.min.x + static_cast<float>(power_w / 150.0) * plot.width(),
+                  plot.max.y - static_cast<float>(bits / 8.0) * plot.height());
+  }
+
+  std::unique_ptr<OffscreenUi> ui_;
+};
+
+TEST_F(IlluminationPanelTest, ClippedFrameShowsARedBannerAndTheSweepCurveWithTheRecommendedPoint) {
+  const auto status = swept_status();
+  const Recommendation& rec = status->recommendation;
+  ASSERT_EQ(rec.source, RecommendationSource::Sweep);
+  ASSERT_TRUE(rec.fit);
+  const IlluminationConfig config = shipped_config();
+  const Snapshot snapshot = snapshot_of(textured_frame(0.2, false), status, config.exposure);
+  ASSERT_EQ(snapshot.exposure.verdict, ExposureVerdict::Clipped);
+
+  for (const ImVec2 size : {ImVec2(900, 300), ImVec2(460, 660)}) {  // the strip under the feed; a column
+    SCOPED_TRACE(size.x);
+    IlluminationPanel panel;
+    const cv::Mat shot = render(static_cast<int>(size.x), static_cast<int>(size.y), panel, snapshot,
+                                size.x > 800 ? "ClippedFrameWide" : "ClippedFrameNarrow");
+
+    // The banner is red where the text is not.
+    const ScreenRect& banner = panel.banner_rect();
+    ASSERT_GT(banner.width(), 300.0f);
+    EXPECT_TRUE(near(pixel(shot, ImVec2(banner.max.x - 5.0f, banner.centre().y)), colours::banner_clipped, 3))
+        << pixel(shot, ImVec2(banner.max.x - 5.0f, banner.centre().y));
+    EXPECT_GT(testing::count_colour(shot, banner, colours::banner_clipped, 3), static_cast<int>(0.5f * banner.width() * banner.height()));
+
+    // The fitted curve runs across the plot at the fit's heights.
+    const ScreenRect& plot = panel.plot_rect();
+    ASSERT_GT(plot.width(), 250.0f);
+    ASSERT_GT(plot.height(), 100.0f);
+    EXPECT_GT(testing::count_colour(shot, plot, colours::fit_curve, 30), static_cast<int>(plot.width()));
+    for (const double power : {10.0, 35.0, 140.0}) {
+      const ImVec2 expected = at(plot, power, rec.fit->curve(power));
+      const int x = static_cast<int>(expected.x);
+      int found = -1;
+      for (int y = static_cast<int>(plot.min.y); y < static_cast<int>(plot.max.y) && found < 0; ++y)
+        if (near(pixel(shot, x, y), colours::fit_curve, 30)) found = y;
+      EXPECT_NEAR(found, expected.y, 3.0f) << "curve at " << power << " W";
+    }
+
+    // The recommended point: a marker in its colour on the curve at the recommended power.
+    ASSERT_TRUE(panel.recommended_marker());
+    const ImVec2 marker = *panel.recommended_marker();
+    const ImVec2 expected = at(plot, rec.power_w, rec.expected_entropy_bits);
+    EXPECT_NEAR(marker.x, expected.x, 1.0f);
+    EXPECT_NEAR(marker.y, expected.y, 1.0f);
+    EXPECT_TRUE(near(pixel(shot, marker), colours::recommended, 3)) << pixel(shot, marker);
+    ScreenRect around{ImVec2(marker.x - 8, marker.y - 8), ImVec2(marker.x + 8, marker.y + 8)};
+    EXPECT_GT(testing::count_colour(shot, around, colours::recommended, 3), 60);
+
+    // A measured point (20 W) in the point colour.
+    const ImVec2 point = at(plot, 20.0, status->points[1].entropy_bits.mean);
+    EXPECT_TRUE(near(pixel(shot, point), colours::sweep_point, 10)) << pixel(shot, point);
+  }
+}
+
+TEST_F(IlluminationPanelTest, BannerIsAmberForADarkFrameAndGreenForAGoodOne) {
+  const IlluminationConfig config = shipped_config();
+  const auto status = SweepRecorder(config).status();
+  IlluminationPanel panel;
+  {
+    const Snapshot dark = snapshot_of(textured_frame(0.0, true), status, config.exposure);
+    ASSERT_EQ(dark.exposure.verdict, ExposureVerdict::Dark);
+    const cv::Mat shot = render(900, 300, panel, dark);
+    const ScreenRect& banner = panel.banner_rect();
+    EXPECT_TRUE(near(pixel(shot, ImVec2(banner.max.x - 5.0f, banner.centre().y)), colours::banner_dark, 3));
+  }
+  {
+    const Snapshot good = snapshot_of(textured_frame(0.0, false), status, config.exposure);
+    ASSERT_EQ(good.exposure.verdict, ExposureVerdict::Ok) << good.exposure.message;
+    const cv::Mat shot = render(900, 300, panel, good);
+    const ScreenRect& banner = panel.banner_rect();
+    EXPECT_TRUE(near(pixel(shot, ImVec2(banner.max.x - 5.0f, banner.centre().y)), colours::banner_ok, 3));
+    // No sweep yet: the room's prior, no fitted curve, the marker at the prior's centre on the axis.
+    EXPECT_EQ(testing::count_colour(shot, panel.plot_rect(), colours::fit_curve, 20), 0);
+    ASSERT_TRUE(panel.recommended_marker());
+    EXPECT_NEAR(panel.recommended_marker()->x, at(panel.plot_rect(), 75.0, 0.0).x, 1.0f);
+    EXPECT_TRUE(near(pixel(shot, *panel.recommended_marker()), colours::recommended, 3));
+    // The coverage map shows the frame's corners.
+    EXPECT_GT(good.structure.feature_count, 50);
+    EXPECT_GT(testing::grey_stddev(shot, panel.coverage_map_rect()), 5.0);
+  }
+}
+
+TEST_F(IlluminationPanelTest, EmptySnapshotDrawsWithoutAdvisorState) {
+  IlluminationPanel panel;
+  const cv::Mat shot = render(900, 300, panel, Snapshot{});
+  EXPECT_FALSE(panel.banner_rect().empty());
+  EXPECT_TRUE(near(pixel(shot, ImVec2(panel.banner_rect().max.x - 5.0f, panel.banner_rect().centre().y)),
+                   colours::frame_bg, 3));
+  EXPECT_TRUE(panel.plot_rect().empty());
+  EXPECT_FALSE(panel.recommended_marker());
+}
+
+// The wizard asks for the plan's next power; a click on Capture posts it to the worker.
+TEST_F(IlluminationPanelTest, CaptureButtonPostsTheRequestedPower) {
+  SweepRecorder recorder(shipped_config());
+  recorder.apply(sweep_command::Start{});
+  recorder.apply(sweep_command::Capture{0.0});
+  for (int i = 0; i < 30; ++i) recorder.add_frame(FrameMetrics{}, 0.0, true);
+  ASSERT_EQ(recorder.status()->requested_power_w(), 20.0);
+  Snapshot snapshot = snapshot_of(textured_frame(0.0, false), recorder.status(), shipped_config().exposure);
+  snapshot.state = WorkerState::Running;
+
+  std::vector<Command> posted;
+  const CommandSink sink = [&posted](Command c) { posted.push_back(std::move(c)); };
+  IlluminationPanel panel;
+  ui_.reset();
+  ui_ = std::make_unique<OffscreenUi>(900, 300);
+  ui_->frame([&] { full_window([&] { panel.draw(snapshot, sink); }); });
+  const ScreenRect button = panel.capture_button_rect();
+  ASSERT_FALSE(button.empty());
+  ImGuiIO& io = ImGui::GetIO();
+  io.MousePos = button.centre();
+  ui_->frame([&] { full_window([&] { panel.draw(snapshot, sink); }); });
+  io.MouseDown[0] = true;
+  ui_->frame([&] { full_window([&] { panel.draw(snapshot, sink); }); });
+  io.MouseDown[0] = false;
+  ui_->frame([&] { full_window([&] { panel.draw(snapshot, sink); }); });
+  io.MousePos = ImVec2(-1.0f, -1.0f);
+  testing::save_if_requested(ui_->read_rgba(), "CaptureButtonPostsTheRequestedPower");
+
+  ASSERT_EQ(posted.size(), 1u);
+  const auto* sweep = std::get_if<command::Sweep>(&posted[0]);
+  ASSERT_NE(sweep, nullptr);
+  const auto* capture = std::get_if<sweep_command::Capture>(&sweep->action);
+  ASSERT_NE(capture, nullptr);
+  EXPECT_DOUBLE_EQ(capture->power_w, 20.0);
+}
+
+// End to end: the worker's wizard sweeps the demo's lamp; the panel draws what it recorded.
+TEST_F(IlluminationPanelTest, DrawsASweepRecordedByTheWorkerOnTheDemo) {
+  WorkerOptions options{.pacing = Pacing::AsFastAsPossible, .loop = true};
+  options.illumination = shipped_config();
+  options.illumination.sweep.settle_frames = 1;
+  Worker worker(options);
+  worker.post(command::SetSource{[] { return make_demo_source(); }});
+  worker.post(command::Sweep{sweep_command::Start{{0, 10, 20, 30, 40, 50, 70, 100}, 5}});
+  worker.post(command::Start{});
+  for (int step = 0; step < 8; ++step) {
+    const auto asked = worker.wait_for(
+        [](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w().has_value(); }, 20s);
+    ASSERT_TRUE(asked->illumination && asked->illumination->requested_power_w()) << asked->message;
+    const double power = *asked->illumination->requested_power_w();
+    worker.post(command::Sweep{sweep_command::Capture{power}});
+    const auto captured = worker.wait_for(
+        [&](const Snapshot& s) {
+          return s.illumination && s.illumination->progress.stage != SweepStage::Capturing &&
+                 std::any_of(s.illumination->points.begin(), s.illumination->points.end(),
+                             [&](const SweepPoint& p) { return p.power_w == power && p.frames == 5; });
+        },
+        20s);
+    ASSERT_NE(captured->illumination->progress.stage, SweepStage::Capturing) << power << " W";
+  }
+  const auto done = worker.wait_for(
+      [](const Snapshot& s) { return s.illumination && s.illumination->progress.stage == SweepStage::Complete; }, 20s);
+  ASSERT_EQ(done->illumination->progress.stage, SweepStage::Complete);
+  // Show the frame at the recommended power, as an operator would after the sweep.
+  const double recommended = done->illumination->recommendation.power_w;
+  worker.post(command::SetIlluminatorPower{recommended});
+  const auto shown = worker.wait_for(
+      [&](const Snapshot& s) { return s.frame && s.frame->illuminator_power_w == recommended; }, 20s);
+  worker.post(command::Pause{});
+  ASSERT_EQ(shown->illumination->points.size(), 8u);
+  ASSERT_EQ(shown->illumination->recommendation.source, RecommendationSource::Sweep)
+      << shown->illumination->recommendation.reasons.front();
+
+  IlluminationPanel panel;
+  const cv::Mat shot = render(900, 290, panel, *shown, "illumination-panel");
+  EXPECT_GT(testing::count_colour(shot, panel.plot_rect(), colours::fit_curve, 30), static_cast<int>(panel.plot_rect().width()));
+  ASSERT_TRUE(panel.recommended_marker());
+  EXPECT_TRUE(near(pixel(shot, *panel.recommended_marker()), colours::recommended, 3));
+  EXPECT_LT(shown->quality.saturated_fraction, 0.02) << "the recommended power respects the clipping limit";
+}
+
+}  // namespace
+}  // namespace nirslam::ui

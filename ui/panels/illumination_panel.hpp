@@ -1,0 +1,65 @@
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include <imgui.h>
+
+#include "nirslam/worker/snapshot.hpp"
+#include "ui/command_sink.hpp"
+#include "ui/widgets.hpp"
+
+namespace nirslam::ui {
+
+// Illumination: what the operator needs to choose the illuminator power.
+//   - a banner with the live verdict on the frame (clipped: red, too dark: amber, fine: green),
+//   - live metrics (mean grey, RMS contrast, sharpness, power, FAST corners, coverage, evenness)
+//     and a map of the corners per grid cell,
+//   - the sweep wizard: scene type, start, "set the lamp to P W" with the power to confirm,
+//     capture progress, skip, finish,
+//   - the entropy-vs-power plot: measured points (mean, one standard deviation), the fitted
+//     saturating curve, the plateau share, and the recommended power (or the prior's range),
+//   - the recommendation with its confidence; its reasons in the tooltip.
+// It reads snapshot.illumination, snapshot.quality/structure/exposure; the wizard's state lives in
+// the worker (SweepRecorder), the panel only posts command::Sweep and keeps what is being typed.
+class IlluminationPanel {
+public:
+  // Draws into the current ImGui window, filling it. Without a sink the controls are disabled.
+  void draw(const Snapshot& snapshot, const CommandSink& post);
+
+  // Geometry of the last draw(), in screen pixels, for the screenshot tests.
+  const ScreenRect& banner_rect() const { return banner_; }
+  const ScreenRect& plot_rect() const { return plot_; }            // the curve plot's data area
+  const ScreenRect& coverage_map_rect() const { return coverage_map_; }
+  const ScreenRect& capture_button_rect() const { return capture_button_; }  // empty unless a power is asked for
+  // Where the recommended point was drawn (sweep: on the curve; prior: on the power axis).
+  const std::optional<ImVec2>& recommended_marker() const { return marker_; }
+
+private:
+  void draw_banner(const Snapshot& snapshot);
+  void draw_live_metrics(const Snapshot& snapshot);
+  void draw_coverage_map(const FeatureGrid& grid, ImVec2 origin, ImVec2 size);
+  void draw_wizard(const IlluminationStatus& status, const Snapshot& snapshot, const CommandSink& post);
+  void draw_settings_popup(const IlluminationStatus& status, const CommandSink& post);
+  void draw_plot(const IlluminationStatus& status, float height);  // title row and plot in `height`
+  void draw_recommendation(const IlluminationStatus& status);
+
+  ScreenRect banner_;
+  ScreenRect plot_;
+  ScreenRect coverage_map_;
+  ScreenRect capture_button_;
+  std::optional<ImVec2> marker_;
+
+  // What the operator is typing: the power to confirm follows the wizard's request until edited.
+  double power_entry_w_ = 0.0;
+  std::optional<std::size_t> power_entry_step_;  // the wizard step the entry was filled for
+  int frames_per_power_ = 0;  // 0: the configured plan's
+  float share_entry_ = 0.0f;
+  float clip_entry_ = 0.0f;
+  // Reused between frames so the plot does not allocate every frame.
+  std::vector<double> curve_x_;
+  std::vector<double> curve_y_;
+};
+
+}  // namespace nirslam::ui

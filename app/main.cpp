@@ -10,7 +10,7 @@
 int main(int argc, char** argv) {
   CLI::App cli{
       "nirslam: near-infrared visual SLAM for field rigs.\n"
-      "Without a subcommand it opens the operator GUI on the built-in demo sequence\n"
+      "Without a subcommand it opens the operator GUI on a simulated pipe tunnel\n"
       "(headless, writing a screenshot, when there is no display)."};
   cli.set_version_flag("--version", std::string("nirslam ") + NIRSLAM_VERSION);
   cli.require_subcommand(0, 1);

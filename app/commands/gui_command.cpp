@@ -20,7 +20,7 @@ namespace nirslam::app {
 namespace {
 
 struct GuiOptions {
-  std::string source = "demo";
+  std::string source = kDefaultSource;
   bool headless = false;
   std::int64_t frames = 60;
   std::filesystem::path screenshot;
@@ -90,12 +90,12 @@ int headless(Worker& worker, const GuiOptions& options, const std::filesystem::p
 
 int run_gui(const GuiOptions& options) {
   const SourceFactory factory = source_factory_from_argument(options.source);
-  const bool demo = options.source == "demo";
+  const bool built_in = is_built_in_sequence(options.source);
   const bool windowed = !options.headless;
   WorkerOptions worker_options = app_config().worker;
   // A window shows the sequence at its own pace; headless (and --fast) goes as fast as it can.
   worker_options.pacing = windowed && !options.fast ? Pacing::RecordedSpeed : Pacing::AsFastAsPossible;
-  worker_options.loop = options.loop || (windowed && demo);
+  worker_options.loop = options.loop || (windowed && built_in);
   Worker worker(worker_options);
   worker.post(command::SetSource{factory});
 
@@ -103,7 +103,7 @@ int run_gui(const GuiOptions& options) {
     return headless(worker, options, options.screenshot.empty() ? "nirslam-gui.png" : options.screenshot);
   }
   WindowedOptions window_options;
-  window_options.title = demo ? "nirslam — demo sequence" : fmt::format("nirslam — {}", options.source);
+  window_options.title = fmt::format("nirslam — {}", options.source);
   window_options.screenshot = options.screenshot;
   window_options.screenshot_after_frames = options.frames;
   if (!options.size.empty()) {
@@ -120,7 +120,7 @@ int run_gui(const GuiOptions& options) {
 void add_gui_command(CLI::App& parent, CommandAction& action) {
   auto options = std::make_shared<GuiOptions>();
   CLI::App* gui = parent.add_subcommand(
-      "gui", "Open the operator GUI on a dataset or the built-in demo (live feed, entropy, controls).\n"
+      "gui", "Open the operator GUI on a dataset or a simulated scene (live feed, entropy, illumination).\n"
              "With --headless it renders offscreen (EGL, no display needed) and writes a PNG.");
   gui->add_option("source", options->source, kSourceArgumentHelp)->capture_default_str();
   gui->add_flag("--headless", options->headless, "Render offscreen without a window and write a screenshot");
@@ -133,7 +133,7 @@ void add_gui_command(CLI::App& parent, CommandAction& action) {
   gui->add_option("--size", options->size, "Window or image size as WIDTHxHEIGHT (default 1440x900 windowed, 1280x800 headless)")
       ->check(CLI::Validator(check_size, "WxH"));
   gui->add_flag("--fast", options->fast, "Windowed: process frames as fast as possible instead of at recorded speed");
-  gui->add_flag("--loop", options->loop, "Restart the source at its end (the windowed demo always loops)");
+  gui->add_flag("--loop", options->loop, "Restart the source at its end (built-in sequences always loop in a window)");
   gui->callback([&action, options] {
     action = [options] {
       try {
@@ -152,10 +152,10 @@ int run_default_gui() {
       GuiOptions options;
       return run_gui(options);
     } catch (const FrontendUnavailable& e) {
-      std::printf("%s; rendering the demo headless instead.\n", e.what());
+      std::printf("%s; rendering the simulated tunnel headless instead.\n", e.what());
     }
   } else {
-    std::printf("No display (DISPLAY and WAYLAND_DISPLAY are unset): rendering the demo headless.\n");
+    std::printf("No display (DISPLAY and WAYLAND_DISPLAY are unset): rendering the simulated tunnel headless.\n");
   }
   GuiOptions options;
   options.headless = true;

@@ -19,7 +19,7 @@ namespace nirslam::app {
 namespace {
 
 struct RunOptions {
-  std::string source = "demo";
+  std::string source = kDefaultSource;
   std::filesystem::path out_dir = "nirslam-run";
   bool recorded_speed = false;
   std::int64_t max_frames = 0;

@@ -6,13 +6,20 @@
 
 namespace nirslam::app {
 
-// What a SOURCE argument on the command line names: the word "demo" for the built-in sequence, or
-// a dataset path (TUM monoVO, EuRoC, image folder). The path is checked now, so a typo is reported
+// What a SOURCE argument on the command line names: a simulated scene ("sim:tunnel", "sim:room",
+// "sim:parking", "sim:outdoor"; "sim" is the tunnel), "demo" for the light-weight synthetic wall
+// (fast, for tests), or a dataset path (TUM monoVO, EuRoC, image folder). The path is checked now, so a typo is reported
 // before any window opens; the source itself is opened on the worker thread.
 SourceFactory source_factory_from_argument(const std::string& argument);
 
+// Whether the argument names one of the built-in sequences rather than a dataset.
+bool is_built_in_sequence(const std::string& argument);
+
+// The sequence nirslam shows when started without one.
+inline constexpr const char* kDefaultSource = "sim:tunnel";
+
 inline constexpr const char* kSourceArgumentHelp =
-    "'demo' (built-in sequence) or a dataset folder: TUM monoVO, EuRoC (mav0/cam0) or a folder of "
-    "images";
+    "'sim:tunnel' (simulated; also sim:room, sim:parking, sim:outdoor), 'demo' (synthetic wall) or a "
+    "dataset folder: TUM monoVO, EuRoC (mav0/cam0) or a folder of images";
 
 }  // namespace nirslam::app

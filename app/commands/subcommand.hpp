@@ -17,7 +17,7 @@ void add_simulate_command(CLI::App& parent, CommandAction& action);
 void add_eval_command(CLI::App& parent, CommandAction& action);
 void add_advise_command(CLI::App& parent, CommandAction& action);
 
-// What `nirslam` with no subcommand does: the GUI on the built-in demo sequence, or the headless
+// What `nirslam` with no subcommand does: the GUI on the simulated tunnel, or the headless
 // rendering of it when there is no display.
 int run_default_gui();
 

@@ -249,6 +249,7 @@ std::optional<SimulatedFrame> Simulator::next(bool with_depth) {
 
 SimulatedSource::SimulatedSource(const SimulatorOptions& options) : simulator_(options) {
   info_.kind = "sim";
+  info_.scene_type = std::string(sim::to_string(simulator_.options().scene));
   const SimulatorOptions& o = simulator_.options();
   info_.description = "simulated " + std::string(sim::to_string(o.scene)) + ", " + std::string(sim::to_string(o.motion)) +
                       ", " + std::to_string(static_cast<int>(std::lround(o.powers_w.front()))) + " W, seed " +
@@ -256,9 +257,14 @@ SimulatedSource::SimulatedSource(const SimulatorOptions& options) : simulator_(o
   if (o.frames > 0) info_.frame_count = static_cast<std::size_t>(o.frames);
   info_.live = false;
   info_.nominal_fps = o.capture_rule ? 1.0 / o.capture_rule->max_interval_s : o.fps;
+  IlluminatorCapabilities lamp;
+  lamp.description = "the simulator's illuminator";
+  lamp.reads_back = true;
+  lamp_ = std::make_shared<ManualIlluminator>(lamp);
 }
 
 std::optional<Frame> SimulatedSource::next() {
+  if (const auto power_w = lamp_->current_power_w()) simulator_.set_power(*power_w);
   std::optional<SimulatedFrame> f = simulator_.next(false);
   if (!f) return std::nullopt;
   last_pose_ = f->T_world_cam;

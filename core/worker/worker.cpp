@@ -166,6 +166,9 @@ void Worker::apply(Command& command) {
             spdlog::error("cannot open source: {}", e.what());
           }
           sweep_.set_illuminator(illuminator().capabilities());
+          // A source that knows its scene (the simulator) selects the advisor's scene prior.
+          if (source_ && !source_->info().scene_type.empty())
+            sweep_.apply(sweep_command::SelectScene{source_->info().scene_type});
           next->illumination = sweep_.status();
           publish(std::move(next));
         } else if constexpr (std::is_same_v<C, command::SetIlluminatorPower>) {

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/worker/worker.hpp"
 
@@ -290,6 +291,51 @@ TEST(Worker, SweepWizardCapturesEachPowerFromTheDemosLamp) {
   EXPECT_EQ(status.recommendation.source, RecommendationSource::Sweep);
   EXPECT_GT(status.recommendation.power_w, 0.0);
   EXPECT_LE(status.recommendation.power_w, 100.0);
+}
+
+}  // namespace
+}  // namespace nirslam
+
+namespace nirslam {
+namespace {
+
+SourceFactory small_simulated(sim::SceneKind scene) {
+  return [scene] {
+    SimulatorOptions options;
+    options.scene = scene;
+    options.width = 160;
+    options.height = 120;
+    options.supersampling = 1;
+    options.frames = 6;
+    options.exposure_mode = ExposureMode::Fixed;
+    return make_simulated_source(options);
+  };
+}
+
+TEST(WorkerOnSimulator, SimulatedSceneSelectsTheAdvisorsScenePrior) {
+  Worker worker;
+  worker.post(command::SetSource{small_simulated(sim::SceneKind::Parking)});
+  const auto s = worker.wait_for(
+      [](const Snapshot& x) { return x.illumination && x.illumination->scene() && x.source.kind == "sim"; },
+      std::chrono::seconds(10));
+  ASSERT_TRUE(s->illumination && s->illumination->scene());
+  EXPECT_EQ(s->illumination->scene()->name, "parking");
+  EXPECT_EQ(s->source.scene_type, "parking");
+}
+
+TEST(WorkerOnSimulator, OperatorPowerDrivesTheSimulatedLamp) {
+  Worker worker;
+  worker.post(command::SetSource{small_simulated(sim::SceneKind::Room)});
+  worker.post(command::Step{});
+  const auto at_50 = worker.wait_for([](const Snapshot& x) { return x.frames_processed == 1; }, std::chrono::seconds(10));
+  ASSERT_TRUE(at_50->frame);
+  EXPECT_DOUBLE_EQ(*at_50->frame->illuminator_power_w, 50.0);
+  worker.post(command::SetIlluminatorPower{20.0});
+  worker.post(command::Step{});
+  const auto at_20 = worker.wait_for([](const Snapshot& x) { return x.frames_processed == 2; }, std::chrono::seconds(10));
+  ASSERT_TRUE(at_20->frame);
+  EXPECT_DOUBLE_EQ(*at_20->frame->illuminator_power_w, 20.0);
+  EXPECT_LT(at_20->quality.mean, at_50->quality.mean) << "less light, darker image at fixed exposure";
 }
 
 }  // namespace

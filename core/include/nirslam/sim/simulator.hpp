@@ -32,6 +32,7 @@
 
 #include "nirslam/camera/camera_model.hpp"
 #include "nirslam/geometry/se3.hpp"
+#include "nirslam/illumination/illuminator.hpp"
 #include "nirslam/image/frame.hpp"
 #include "nirslam/photometric/response_model.hpp"
 #include "nirslam/sim/renderer.hpp"
@@ -160,6 +161,9 @@ public:
   std::optional<Frame> next() override;
   void rewind() override { simulator_.rewind(); }
   std::shared_ptr<const CameraModel> camera() const override { return simulator_.camera(); }
+  // The simulated lamp: a power set here (the operator's, or the sweep wizard's) replaces the
+  // options' power schedule from the next frame on.
+  std::shared_ptr<IlluminatorController> illuminator() const override { return lamp_; }
 
   Simulator& simulator() { return simulator_; }
   const Simulator& simulator() const { return simulator_; }
@@ -170,6 +174,7 @@ private:
   Simulator simulator_;
   SourceInfo info_;
   std::optional<SE3> last_pose_;
+  std::shared_ptr<ManualIlluminator> lamp_;
 };
 
 std::unique_ptr<Source> make_simulated_source(const SimulatorOptions& options = {});

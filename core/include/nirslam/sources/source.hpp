@@ -20,6 +20,7 @@ struct SourceInfo {
   std::optional<std::size_t> frame_count;  // known for datasets, unknown for live sources
   bool live = false;        // a live source keeps producing frames whether or not they are consumed
   double nominal_fps = 0.0; // recorded or device rate, 0 when unknown
+  std::string scene_type;   // "room", "outdoor", "parking", "tunnel" when the source knows it
 };
 
 // A stream of frames. Datasets, cameras, recorded sessions and the simulator all implement it.

@@ -12,13 +12,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("nirslam_gui_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
 double grey_stddev(const cv::Mat& image) {
   cv::Scalar mean, stddev;
   cv::meanStdDev(image, mean, stddev);
@@ -26,7 +19,7 @@ double grey_stddev(const cv::Mat& image) {
 }
 
 TEST(GuiCommand, HeadlessScreenshotShowsTheWholeWindow) {
-  const fs::path shot = fresh_dir("shot") / "gui.png";
+  const fs::path shot = fresh_dir("gui_shot") / "gui.png";
   const CommandResult r =
       run_command(nirslam("gui --headless --frames 20 --size 960x600 --screenshot '" + shot.string() + "'"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -39,7 +32,7 @@ TEST(GuiCommand, HeadlessScreenshotShowsTheWholeWindow) {
 }
 
 TEST(GuiCommand, HeadlessOnRealEurocData) {
-  const fs::path shot = fresh_dir("euroc") / "euroc.png";
+  const fs::path shot = fresh_dir("gui_euroc") / "euroc.png";
   const fs::path dataset = fs::path(NIRSLAM_SHARED_DATA_DIR) / "euroc_v1_01_micro";
   const CommandResult r = run_command(nirslam("gui '" + dataset.string() +
                                               "' --headless --frames 10 --screenshot '" + shot.string() + "'"));
@@ -74,7 +67,7 @@ TEST(GuiCommand, NoEglIsAClearError) {
 
 // The README's main command on a machine without a display: renders headless and says where.
 TEST(DefaultCommand, WithoutADisplayRendersHeadlessAndSaysWhere) {
-  const fs::path dir = fresh_dir("default");
+  const fs::path dir = fresh_dir("gui_default");
   const CommandResult r =
       run_command("cd '" + dir.string() + "' && env -u DISPLAY -u WAYLAND_DISPLAY " + nirslam(""));
   ASSERT_EQ(r.exit_code, 0) << r.output;

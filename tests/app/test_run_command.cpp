@@ -15,19 +15,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("nirslam_cli_" + name);
-  fs::remove_all(dir);
-  return dir;
-}
-
-std::vector<std::string> lines_of(const fs::path& file) {
-  std::ifstream in(file);
-  std::vector<std::string> lines;
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
-  return lines;
-}
-
 TEST(RunCommand, DemoWritesOneCsvRowPerFrameAndASummary) {
   const fs::path out = fresh_dir("demo");
   const CommandResult r = run_command(nirslam("run demo --max-frames 20 --out '" + out.string() + "'"));

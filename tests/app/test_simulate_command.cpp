@@ -17,22 +17,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("nirslam_cli_simulate_" + name);
-  fs::remove_all(dir);
-  return dir;
-}
-
-std::vector<std::string> lines_of(const fs::path& file) {
-  std::ifstream in(file);
-  std::vector<std::string> lines;
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
-  return lines;
-}
-
 TEST(SimulateCommand, TunnelAt50WattsWritesASequenceDsoToolsCanRead) {
   // The command of the issue, as written there.
-  const fs::path out = fresh_dir("tunnel");
+  const fs::path out = fresh_dir("simulate_tunnel");
   const CommandResult r = run_command(nirslam("simulate --scene tunnel --power 50 --frames 300 --out '" + out.string() + "'"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find(out.string()), std::string::npos) << "says where the output went\n" << r.output;
@@ -61,7 +48,7 @@ TEST(SimulateCommand, TunnelAt50WattsWritesASequenceDsoToolsCanRead) {
 }
 
 TEST(SimulateCommand, PowerSweepWritesOneImagePerPower) {
-  const fs::path out = fresh_dir("sweep");
+  const fs::path out = fresh_dir("simulate_sweep");
   const CommandResult r = run_command(
       nirslam("simulate --scene parking --width 160 --height 120 --exposure 5 --sweep 0,50,100,150 --out '" + out.string() + "'"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -72,7 +59,7 @@ TEST(SimulateCommand, PowerSweepWritesOneImagePerPower) {
 }
 
 TEST(SimulateCommand, SmallOptionsAreHonoured) {
-  const fs::path out = fresh_dir("options");
+  const fs::path out = fresh_dir("simulate_options");
   const CommandResult r = run_command(nirslam(
       "simulate --scene room --motion robot --camera fov --width 200 --height 150 --frames 5 --bits 16 --response linear "
       "--exposure 4 --motion-blur --depth --out '" + out.string() + "' --contact-sheet '" + (out / "sheet.png").string() + "'"));
@@ -89,7 +76,7 @@ TEST(SimulateCommand, SmallOptionsAreHonoured) {
 }
 
 TEST(SimulateCommand, BadArgumentsAreNamed) {
-  const fs::path out = fresh_dir("bad");
+  const fs::path out = fresh_dir("simulate_bad");
   CommandResult r = run_command(nirslam("simulate --scene moon --out '" + out.string() + "'"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("moon"), std::string::npos) << r.output;
@@ -102,7 +89,7 @@ TEST(SimulateCommand, BadArgumentsAreNamed) {
 }
 
 TEST(SimulateCommand, FullDiskNamesTheFile) {
-  const fs::path out = fresh_dir("full");
+  const fs::path out = fresh_dir("simulate_full");
   fs::create_directories(out);
   fs::create_symlink("/dev/full", out / "groundtruth.txt");
   const CommandResult r = run_command(nirslam("simulate --scene room --frames 3 --width 64 --height 48 --out '" + out.string() + "'"));

@@ -96,13 +96,8 @@ std::optional<Frame> EurocReader::next() {
   // Advance first: after a bad frame throws, the next call moves on to the following one.
   const std::size_t index = next_index_++;
   GreyImageDecoder::Image decoded = decoder_.read_file(files_[index]);
-  Frame frame;
-  frame.image = std::move(decoded.image);
-  frame.bit_depth = decoded.bit_depth;
-  frame.timestamp_s = seconds_from_nanoseconds(timestamps_ns_[index]);
-  frame.index = static_cast<std::int64_t>(index);
-  frame.name = files_[index].filename().string();
-  return frame;
+  return make_sequence_frame(std::move(decoded), index, seconds_from_nanoseconds(timestamps_ns_[index]), std::nullopt,
+                             files_[index].filename().string());
 }
 
 }  // namespace nirslam

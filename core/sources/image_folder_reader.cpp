@@ -120,14 +120,8 @@ std::optional<Frame> ImageFolderReader::next() {
   // Advance first: after a bad frame throws, the next call moves on to the following one.
   const std::size_t index = next_index_++;
   GreyImageDecoder::Image decoded = decoder_.read_file(files_[index]);
-  Frame frame;
-  frame.image = std::move(decoded.image);
-  frame.bit_depth = decoded.bit_depth;
-  frame.timestamp_s = timestamps_s_[index];
-  frame.index = static_cast<std::int64_t>(index);
-  frame.exposure_ms = exposures_ms_[index];
-  frame.name = files_[index].filename().string();
-  return frame;
+  return make_sequence_frame(std::move(decoded), index, timestamps_s_[index], exposures_ms_[index],
+                             files_[index].filename().string());
 }
 
 }  // namespace nirslam

@@ -16,4 +16,16 @@ double frame_rate_from_timestamps(const std::vector<double>& timestamps_s) {
   return static_cast<double>(timestamps_s.size() - 1) / span;
 }
 
+Frame make_sequence_frame(GreyImageDecoder::Image decoded, std::size_t index, double timestamp_s,
+                          std::optional<double> exposure_ms, std::string name) {
+  Frame frame;
+  frame.image = std::move(decoded.image);
+  frame.bit_depth = decoded.bit_depth;
+  frame.timestamp_s = timestamp_s;
+  frame.index = static_cast<std::int64_t>(index);
+  frame.exposure_ms = exposure_ms;
+  frame.name = std::move(name);
+  return frame;
+}
+
 }  // namespace nirslam

@@ -206,14 +206,8 @@ std::optional<Frame> TumMonoVoReader::next() {
   GreyImageDecoder::Image decoded =
       archive_ ? decoder_.decode(archive_->read(index), archive_->member_path(index))
                : decoder_.read_file(image_files_[index]);
-  Frame frame;
-  frame.image = std::move(decoded.image);
-  frame.bit_depth = decoded.bit_depth;
-  frame.timestamp_s = times_[index].timestamp_s;
-  frame.index = static_cast<std::int64_t>(index);
-  frame.exposure_ms = times_[index].exposure_ms;
-  frame.name = archive_ ? archive_->name(index) : image_files_[index].filename().string();
-  return frame;
+  return make_sequence_frame(std::move(decoded), index, times_[index].timestamp_s, times_[index].exposure_ms,
+                             archive_ ? archive_->name(index) : image_files_[index].filename().string());
 }
 
 }  // namespace nirslam

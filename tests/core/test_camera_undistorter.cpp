@@ -9,23 +9,14 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
+#include "camera_fixtures.hpp"
 #include "nirslam/camera/camera_model.hpp"
 #include "nirslam/camera/undistorter.hpp"
 
 namespace nirslam {
 namespace {
 
-RadTanCamera euroc_cam0() {
-  return RadTanCamera(752, 480, {458.654, 457.296, 367.215, 248.375},
-                      {-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05});
-}
-
-FovCamera tum_monovo_fov() {
-  return FovCamera(1280, 1024,
-                   absolute_from_relative_intrinsics({0.349153, 0.436593, 0.493140, 0.499021}, 1280,
-                                                     1024),
-                   0.933271);
-}
+using namespace test_cameras;
 
 // A scene drawn on the z = 1 plane, as a function of undistorted normalised coordinates.
 using PlaneTexture = std::function<double(double x, double y)>;

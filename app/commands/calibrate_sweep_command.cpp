@@ -1,0 +1,153 @@
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <spdlog/spdlog.h>
+
+#include "commands/subcommand.hpp"
+#include "nirslam/common/error.hpp"
+#include "nirslam/image/image_files.hpp"
+#include "nirslam/photometric/exposure_sweep_calibration.hpp"
+#include "nirslam/photometric/response_model.hpp"
+
+namespace nirslam::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CalibrateSweepOptions {
+  fs::path folder;
+  fs::path times;
+  fs::path out_dir;
+  bool green = false;
+  int max_valid_grey = 254;
+};
+
+// The green channel of a colour file (a pixel whose red or blue channel clips has a grey value
+// no response explains); grey files are used as they are.
+cv::Mat read_green_or_grey(const fs::path& file) {
+  const cv::Mat decoded = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+  if (decoded.empty()) throw InputError(file, "cannot read or decode the image");
+  if (decoded.depth() != CV_8U) throw InputError(file, "--green needs 8-bit images");
+  if (decoded.channels() == 1) return decoded;
+  if (decoded.channels() < 3) throw InputError(file, "unsupported channel count");
+  cv::Mat green;
+  cv::extractChannel(decoded, green, 1);
+  return green;
+}
+
+int run_calibrate_sweep(const CalibrateSweepOptions& options) {
+  const std::vector<fs::path> files = list_image_files(options.folder);
+  if (files.empty()) throw InputError(options.folder, "no image files");
+
+  std::optional<std::vector<double>> times;
+  if (!options.times.empty()) {
+    std::map<std::string, double> by_name;
+    for (const NamedExposureTime& t : read_exposure_times(options.times)) by_name[t.name] = t.seconds;
+    times.emplace();
+    for (const fs::path& file : files) {
+      auto it = by_name.find(file.stem().string());
+      if (it == by_name.end()) it = by_name.find(file.filename().string());
+      if (it == by_name.end())
+        throw InputError(options.times, "no exposure time for image '" + file.filename().string() + "'");
+      times->push_back(it->second);
+    }
+  }
+
+  std::vector<cv::Mat> images;
+  for (const fs::path& file : files)
+    images.push_back(options.green ? read_green_or_grey(file) : read_grey_image(file).image);
+
+  ExposureSweepOptions sweep_options;
+  sweep_options.max_valid_grey = options.max_valid_grey;
+  const ExposureSweepResult result = calibrate_exposure_sweep(images, times, sweep_options);
+
+  std::printf("Response calibration from an exposure sweep: %zu images in %s\n", files.size(),
+              options.folder.string().c_str());
+  std::printf("  ambiguity resolution: %s\n", to_string(result.resolution).c_str());
+  if (!times)
+    std::printf("  warning: without exposure times the gamma is pinned only by the response basis; the ratios\n"
+                "           below are self-consistent but not reliable as exposure ratios (pass --times)\n");
+  std::printf("  %-24s %6s %10s %12s %9s %8s  %s\n", "image", "used", "unclipped", "exposure", "ratio", "rms[gl]",
+              "note");
+  for (std::size_t j = 0; j < files.size(); ++j) {
+    const ExposureSweepImage& info = result.images[j];
+    std::printf("  %-24s %6s %10d %12.6g %9.5g %8.2f  %s\n", files[j].filename().string().c_str(),
+                info.used ? "yes" : "no", info.unclipped_samples, info.exposure, info.ratio, info.residual_rms_grey,
+                info.note.c_str());
+  }
+  const Eigen::Vector4d& c = result.response.coefficients();
+  std::printf("  points %d, observations %d, residual %.3f grey levels, %d iterations, monotonic %s\n",
+              result.point_count, result.observation_count, result.residual_rms_grey, result.iterations,
+              result.monotonic ? "yes" : "no");
+  std::printf("  c = %.6f %.6f %.6f %.6f\n", c[0], c[1], c[2], c[3]);
+  if (!result.ok) {
+    spdlog::error("calibration failed: {}", result.reason);
+    return 1;
+  }
+
+  if (!options.out_dir.empty()) {
+    fs::create_directories(options.out_dir);
+    write_pcalib(options.out_dir / "pcalib.txt", result.response.inverse_table());
+    nlohmann::json images_json = nlohmann::json::array();
+    for (std::size_t j = 0; j < files.size(); ++j) {
+      const ExposureSweepImage& info = result.images[j];
+      images_json.push_back({{"file", files[j].filename().string()},
+                             {"used", info.used},
+                             {"exposure", info.exposure},
+                             {"ratio", info.ratio},
+                             {"unclipped_samples", info.unclipped_samples},
+                             {"residual_rms_grey", info.residual_rms_grey},
+                             {"note", info.note}});
+    }
+    const nlohmann::json summary = {
+        {"response_coefficients", {c[0], c[1], c[2], c[3]}},
+        {"monotonic", result.monotonic},
+        {"ambiguity_resolution", to_string(result.resolution)},
+        {"exposure_times_given", times.has_value()},
+        {"reference_image", files[static_cast<std::size_t>(result.reference_image)].filename().string()},
+        {"residual_rms_grey", result.residual_rms_grey},
+        {"points", result.point_count},
+        {"observations", result.observation_count},
+        {"images", images_json}};
+    const fs::path json_file = options.out_dir / "sweep_calibration.json";
+    std::ofstream out(json_file);
+    out << summary.dump(2) << "\n";
+    if (!out) throw std::runtime_error(json_file.string() + ": cannot write");
+    std::printf("  wrote %s and %s\n", (options.out_dir / "pcalib.txt").string().c_str(), json_file.string().c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+void add_calibrate_sweep_command(CLI::App& parent, CommandAction& action) {
+  auto options = std::make_shared<CalibrateSweepOptions>();
+  CLI::App* cmd = parent.add_subcommand(
+      "calibrate-sweep",
+      "Calibrate the camera response from a static exposure sweep (tripod, static scene, images with different\n"
+      "exposures): the 4-coefficient response of the photometric model, the exposure ratios, the residual.\n"
+      "With --times the recorded exposure times resolve the gamma/scale ambiguity; without, the exposures are\n"
+      "estimated too (reference image = 1) and the ratios are not reliable. Writes DSO's pcalib.txt and\n"
+      "sweep_calibration.json with --out.");
+  cmd->add_option("sweep_dir", options->folder, "Folder of the sweep's images")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--times", options->times,
+                  "Exposure times, lines 'NAME: SECONDS' (NAME = image file name without extension; SECONDS a number "
+                  "or a fraction like 1/250)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--out", options->out_dir, "Folder for pcalib.txt and sweep_calibration.json");
+  cmd->add_flag("--green", options->green, "Use the green channel of colour images instead of the grey conversion");
+  cmd->add_option("--max-valid", options->max_valid_grey, "Largest grey value counted as unclipped (default 254)")
+      ->check(CLI::Range(2, 255));
+  cmd->callback([options, &action] { action = [options] { return run_calibrate_sweep(*options); }; });
+}
+
+}  // namespace nirslam::app

@@ -1,0 +1,120 @@
+#pragma once
+
+// Response calibration from a static exposure sweep (issue 6): N grey images of a static scene
+// taken from a tripod with different exposures. Pixel i in image j obeys (DESIGN.md, "The
+// photometric model", with V folded into the per-point radiance because the camera does not move)
+//
+//   I_ij / 255 = f(e_j * L_i)
+//
+// with f the project's ResponseModel (four coefficients c1..c4). Unknowns: c, log L_i per sampled
+// point, and (when the exposure times are not given) log e_j.
+//
+// The residual lives in the grey domain, r_ij = f(exp(log_radiance_i + log_exposure_j)) - I_ij/255:
+// the noise of an 8-bit image (read noise, quantisation, JPEG) is roughly constant in grey levels,
+// while in the log-irradiance domain it would blow up near black, where the inverse response is
+// steep. A Huber loss (width in grey levels) takes care of JPEG ringing and slight misalignment.
+// Solver: hand-written Levenberg-Marquardt with the Schur complement over the per-point log
+// radiances (each point is a 1x1 block), analytic Jacobians (see sweep_prediction).
+//
+// Monotonicity: the fit carries a penalty on df/du < 0.01 (u = sqrt(X)) on a grid of u in [0, 1];
+// the result reports ResponseModel::is_monotonic() of the estimate and rejects (keeps the prior)
+// a non-monotonic one.
+//
+// Ambiguity (DESIGN.md): f(X^g), e^g, L^g fit (almost) equally well, and so do e*k, L/k.
+//  - Known exposure times (SweepAmbiguityResolution::KnownExposureTimes) resolve the gamma:
+//    log e_j is fixed to log(t_j / t_ref); the irradiance unit is absorbed by the radiances and
+//    pinned by f(1) = 1 when samples reach close to saturation (else f is known up to X -> kX,
+//    which a correction G(I) / e does not care about).
+//  - Unknown exposure times, response estimated too (ReferenceImageNormalisation): the scale is
+//    fixed by e_ref = 1 for the reference image (the first used image); the gamma is pinned only
+//    by the response basis itself (f(0) = 0, f(1) = 1, sqrt-like near black) and the weak prior on
+//    c. That is NOT reliable: on synthetic sweeps Gamma and Filmic come out within 2.5%, Log off
+//    by a power of ~1.7; on the real Canon S45 stack the ratios are off by a power of ~3 while the
+//    residual is lower than with the true times. Use it only for relative, self-consistent
+//    corrections, never for exposure ratios.
+//  - Unknown exposure times, response held at options.prior (FixedPriorResponse, fix_response):
+//    e_ref = 1 and f = prior; this is the reliable way to estimate exposures, with a response
+//    calibrated before from known times (the test on the real stack does exactly this).
+// Degenerate input (fewer than two usable images, black or saturated images, too few unclipped
+// samples, no exposure variation, a failed or non-monotonic fit) never throws and never yields
+// NaN: the result has ok = false, a reason, and the prior response / given exposures.
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include "nirslam/photometric/response_model.hpp"
+
+namespace nirslam {
+
+struct ExposureSweepOptions {
+  int max_points = 3000;            // sampled pixel positions (low local gradient)
+  int min_valid_grey = 1;           // a sample whose 3x3 neighbourhood holds a value below this
+  int max_valid_grey = 254;         //   or above this counts as clipped and is skipped
+  double min_unclipped_fraction = 0.05;  // of the sampled positions, for an image to be used
+  int min_points = 50;              // points with >= 2 unclipped observations
+  double huber_grey = 3.0;          // Huber width in grey levels
+  int max_iterations = 100;
+  double coefficient_prior_weight = 1e-7;  // per observation, pulls c towards the prior's (residuals are in [0, 1] units)
+  ResponseModel prior;              // returned when the input is degenerate; start of the fit
+  bool fix_response = false;        // hold f at the prior, estimate exposures (and radiances) only
+};
+
+enum class SweepAmbiguityResolution {
+  KnownExposureTimes,            // exposures fixed from the given times
+  ReferenceImageNormalisation,   // e_ref = 1, gamma pinned only by the basis (weak, see above)
+  FixedPriorResponse,            // e_ref = 1, f held at options.prior (fix_response)
+};
+std::string to_string(SweepAmbiguityResolution resolution);
+
+struct ExposureSweepImage {
+  double exposure = 0.0;       // given time, or estimated in units of the reference exposure
+                               // (0 for an image not used when the exposures are estimated)
+  double ratio = 0.0;          // exposure / exposure of the reference image (0 likewise)
+  bool used = false;           // took part in the fit
+  int unclipped_samples = 0;   // of the sampled positions
+  double residual_rms_grey = 0.0;  // of this image's observations in the fit
+  std::string note;            // why an image was not used
+};
+
+struct ExposureSweepResult {
+  bool ok = false;
+  std::string reason;  // empty when ok; else why the prior was kept
+  ResponseModel response;
+  std::vector<ExposureSweepImage> images;
+  int reference_image = -1;
+  SweepAmbiguityResolution resolution = SweepAmbiguityResolution::ReferenceImageNormalisation;
+  double residual_rms_grey = 0.0;  // over the used observations, grey levels
+  int point_count = 0;
+  int observation_count = 0;
+  int iterations = 0;
+  bool monotonic = true;
+};
+
+// `images`: 8-bit single-channel images of one size. `exposure_times`: one positive time per image
+// (any unit), or nothing to estimate the exposures too.
+ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
+                                             const std::optional<std::vector<double>>& exposure_times,
+                                             const ExposureSweepOptions& options = {});
+
+// The model's prediction f(exp(log_irradiance)) for coefficients c, evaluated as a polynomial in
+// u = sqrt(X) (not clamped, so the fit has a gradient past saturation). With a jacobian it also
+// gives d/dc1..c4 (entries 0..3) and d/dlog_irradiance (entry 4). Equal to ResponseModel on [0, 1].
+double sweep_prediction(const Eigen::Vector4d& c, double log_irradiance,
+                        Eigen::Matrix<double, 5, 1>* jacobian = nullptr);
+
+// An exposure-time list such as the MPI HDR sets' shutter.txt: lines "NAME: TIME" where TIME is
+// seconds as a number or a fraction "1/250". Lines whose first field does not end in ':' are free
+// text and skipped, as are '#' comments. Throws InputError naming the file and line for a data
+// line with a missing, non-positive or malformed time, or when no data line exists.
+struct NamedExposureTime {
+  std::string name;
+  double seconds = 0.0;
+};
+std::vector<NamedExposureTime> read_exposure_times(const std::filesystem::path& file);
+
+}  // namespace nirslam

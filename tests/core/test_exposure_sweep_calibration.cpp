@@ -1,0 +1,309 @@
+// Response calibration from a static exposure sweep (issue 6): synthetic sweeps with a known
+// response, the real Canon S45 stack with its recorded shutter times, and degenerate input.
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "nirslam/common/error.hpp"
+#include "nirslam/image/image_files.hpp"
+#include "nirslam/photometric/exposure_sweep_calibration.hpp"
+
+namespace nirslam {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A static scene of 8x8-pixel patches with log-uniform radiance in [0.02, 1], seen with the
+// given exposures through `response`, Gaussian noise of `noise_grey`, quantised to 8 bit.
+std::vector<cv::Mat> render_sweep(const ResponseModel& response, const std::vector<double>& exposures,
+                                  double noise_grey, unsigned seed) {
+  constexpr int kWidth = 256, kHeight = 192, kPatch = 8;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> log_l(std::log(0.02), std::log(1.0));
+  std::normal_distribution<double> noise(0.0, noise_grey);
+  cv::Mat radiance(kHeight / kPatch, kWidth / kPatch, CV_64FC1);
+  for (int r = 0; r < radiance.rows; ++r)
+    for (int c = 0; c < radiance.cols; ++c) radiance.at<double>(r, c) = std::exp(log_l(rng));
+  std::vector<cv::Mat> images;
+  for (double e : exposures) {
+    cv::Mat image(kHeight, kWidth, CV_8UC1);
+    for (int r = 0; r < kHeight; ++r)
+      for (int c = 0; c < kWidth; ++c) {
+        const double grey = 255.0 * response(e * radiance.at<double>(r / kPatch, c / kPatch)) + noise(rng);
+        image.at<unsigned char>(r, c) = static_cast<unsigned char>(std::clamp(std::lround(grey), 0L, 255L));
+      }
+    images.push_back(image);
+  }
+  return images;
+}
+
+const std::vector<double> kExposures = {1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125};
+
+TEST(ExposureSweep, PredictionMatchesResponseModelAndJacobianIsNumeric) {
+  const Eigen::Vector4d c(0.3, -0.2, 0.1, 0.05);
+  const ResponseModel f(c);
+  for (double X : {0.001, 0.05, 0.3, 0.7, 0.99}) {
+    Eigen::Matrix<double, 5, 1> jac;
+    const double value = sweep_prediction(c, std::log(X), &jac);
+    EXPECT_NEAR(value, f(X), 1e-12);
+    const double h = 1e-6;
+    for (int k = 0; k < 4; ++k) {
+      Eigen::Vector4d cp = c, cm = c;
+      cp[k] += h;
+      cm[k] -= h;
+      EXPECT_NEAR(jac[k], (sweep_prediction(cp, std::log(X)) - sweep_prediction(cm, std::log(X))) / (2 * h), 1e-7);
+    }
+    EXPECT_NEAR(jac[4], (sweep_prediction(c, std::log(X) + h) - sweep_prediction(c, std::log(X) - h)) / (2 * h), 1e-7);
+  }
+}
+
+class ExposureSweepPresets : public ::testing::TestWithParam<ResponsePreset> {};
+
+TEST_P(ExposureSweepPresets, KnownExposuresRecoverResponseWithinTwoGreyLevels) {
+  const ResponseModel truth = ResponseModel::from_preset(GetParam());
+  const auto images = render_sweep(truth, kExposures, 0.7, 11);
+  const ExposureSweepResult result = calibrate_exposure_sweep(images, kExposures);
+  ASSERT_TRUE(result.ok) << result.reason;
+  EXPECT_EQ(result.resolution, SweepAmbiguityResolution::KnownExposureTimes);
+  EXPECT_TRUE(result.monotonic);
+  EXPECT_LT(result.residual_rms_grey, 1.5);
+  EXPECT_GT(result.point_count, 500);
+  // Without samples at saturation the irradiance unit is not pinned (f(X) and f(kX) fit alike
+  // within the data, see the header): compare f_est(k X) with f_true(X) for the best k, over the
+  // data's range X = e L in [0.02 * 0.03125, 1].
+  double worst = 1e9, best_k = 0.0;
+  for (double k = 0.5; k <= 2.0; k *= 1.002) {
+    double err = 0.0;
+    for (double X = 0.0006; X <= 1.0 / k && X <= 1.0; X *= 1.05)
+      err = std::max(err, 255.0 * std::abs(result.response(k * X) - truth(X)));
+    if (err < worst) {
+      worst = err;
+      best_k = k;
+    }
+  }
+  EXPECT_LT(worst, 2.0) << to_string(GetParam()) << " best scale " << best_k;
+  std::printf("%s: worst %.2f grey at scale %.3f, rms %.2f\n", std::string(to_string(GetParam())).c_str(), worst,
+              best_k, result.residual_rms_grey);
+  for (std::size_t j = 0; j < kExposures.size(); ++j) EXPECT_DOUBLE_EQ(result.images[j].ratio, kExposures[j]);
+}
+
+TEST_P(ExposureSweepPresets, UnknownExposuresWithFixedResponseRecoverRatiosWithinTwoPercent) {
+  const ResponseModel truth = ResponseModel::from_preset(GetParam());
+  const auto images = render_sweep(truth, kExposures, 0.7, 12);
+  ExposureSweepOptions options;
+  options.prior = truth;
+  options.fix_response = true;
+  const ExposureSweepResult result = calibrate_exposure_sweep(images, std::nullopt, options);
+  ASSERT_TRUE(result.ok) << result.reason;
+  EXPECT_EQ(result.resolution, SweepAmbiguityResolution::FixedPriorResponse);
+  EXPECT_EQ(result.reference_image, 0);
+  EXPECT_EQ(result.response.coefficients(), truth.coefficients());
+  for (std::size_t j = 0; j < kExposures.size(); ++j) {
+    ASSERT_TRUE(result.images[j].used);
+    EXPECT_NEAR(result.images[j].ratio / kExposures[j], 1.0, 0.02) << to_string(GetParam()) << " image " << j;
+  }
+}
+
+// Response and exposures both unknown: the fit explains the data and stays monotonic, but the
+// ratios are only as good as the gamma normalisation (see the header; measured: Gamma and Filmic
+// within 2.5%, Log off by a power of about 1.7), so only their order and the label are checked.
+TEST_P(ExposureSweepPresets, UnknownExposuresJointFitIsMonotonicAndSaysWhichNormalisation) {
+  const ResponseModel truth = ResponseModel::from_preset(GetParam());
+  const auto images = render_sweep(truth, kExposures, 0.7, 14);
+  const ExposureSweepResult result = calibrate_exposure_sweep(images, std::nullopt);
+  ASSERT_TRUE(result.ok) << result.reason;
+  EXPECT_EQ(result.resolution, SweepAmbiguityResolution::ReferenceImageNormalisation);
+  EXPECT_NE(to_string(result.resolution).find("e_ref = 1"), std::string::npos);
+  EXPECT_TRUE(result.monotonic);
+  EXPECT_LT(result.residual_rms_grey, 1.5);
+  EXPECT_DOUBLE_EQ(result.images[0].ratio, 1.0);
+  for (std::size_t j = 1; j < kExposures.size(); ++j) EXPECT_LT(result.images[j].ratio, result.images[j - 1].ratio);
+}
+
+INSTANTIATE_TEST_SUITE_P(Presets, ExposureSweepPresets,
+                         ::testing::Values(ResponsePreset::Gamma, ResponsePreset::Log, ResponsePreset::Filmic));
+
+// The Canon S45 stack (../shared/data/exposure_stack_canon_s45): 13 colour JPEGs, tripod, shutter
+// times 13 s .. 1/1000 s in shutter.txt. The green channel is used, not the grey conversion: a
+// pixel whose red or blue channel saturates has an unclipped-looking grey value that no
+// response explains. JPEG's tone curve rolls off softly into saturation, so samples above 245
+// count as clipped. Images are halved for speed.
+struct CanonStack {
+  std::vector<NamedExposureTime> times;
+  std::vector<cv::Mat> green;
+};
+
+CanonStack load_canon_stack() {
+  CanonStack stack;
+  const fs::path dir = fs::path(NIRSLAM_SHARED_DATA_DIR) / "exposure_stack_canon_s45";
+  if (!fs::exists(dir / "shutter.txt")) return stack;
+  stack.times = read_exposure_times(dir / "shutter.txt");
+  for (const auto& t : stack.times) {
+    const cv::Mat colour = cv::imread((dir / (t.name + ".jpg")).string(), cv::IMREAD_COLOR);
+    if (colour.empty()) return {};
+    cv::Mat green, half;
+    cv::extractChannel(colour, green, 1);
+    cv::resize(green, half, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
+    stack.green.push_back(half);
+  }
+  return stack;
+}
+
+ExposureSweepOptions canon_options() {
+  ExposureSweepOptions options;
+  options.max_valid_grey = 245;
+  return options;
+}
+
+TEST(ExposureSweep, RealCanonStackKnownTimesGiveMonotonicResponse) {
+  const CanonStack stack = load_canon_stack();
+  if (stack.green.empty()) GTEST_SKIP() << "no exposure_stack_canon_s45";
+  ASSERT_EQ(stack.times.size(), 13u);
+  std::vector<double> shutter;
+  for (const auto& t : stack.times) shutter.push_back(t.seconds);
+  const ExposureSweepResult result = calibrate_exposure_sweep(stack.green, shutter, canon_options());
+  ASSERT_TRUE(result.ok) << result.reason;
+  EXPECT_TRUE(result.monotonic);
+  EXPECT_TRUE(result.response.is_monotonic());
+  EXPECT_LT(result.residual_rms_grey, 2.5);
+  EXPECT_GT(result.point_count, 2000);
+  const auto& c = result.response.coefficients();
+  std::printf("known times: reference %s, points %d, observations %d, rms %.3f grey, iterations %d, c = %.4f %.4f %.4f %.4f\n",
+              stack.times[static_cast<std::size_t>(result.reference_image)].name.c_str(), result.point_count,
+              result.observation_count, result.residual_rms_grey, result.iterations, c[0], c[1], c[2], c[3]);
+  for (std::size_t j = 0; j < stack.green.size(); ++j)
+    std::printf("  %s: used %d, unclipped %d, rms %.2f %s\n", stack.times[j].name.c_str(), result.images[j].used ? 1 : 0,
+                result.images[j].unclipped_samples, result.images[j].residual_rms_grey, result.images[j].note.c_str());
+  // The darkest frame (1/1000 s) is nearly black at this scale: excluded, and said so.
+  EXPECT_FALSE(result.images[12].used);
+  EXPECT_NE(result.images[12].note.find("mostly black"), std::string::npos);
+}
+
+TEST(ExposureSweep, RealCanonStackEstimatedRatiosMatchShutterTimesWithinFivePercent) {
+  const CanonStack stack = load_canon_stack();
+  if (stack.green.empty()) GTEST_SKIP() << "no exposure_stack_canon_s45";
+  std::vector<double> shutter;
+  for (const auto& t : stack.times) shutter.push_back(t.seconds);
+  // Step 1: the response from the sweep with the recorded times.
+  // Measured (green channel, half size): img02..img08 within 5% (largest -4.6%, img08); the four
+  // short exposures img09..img12 (1/60, 1/80, 1/320, 1/400 s, 175..667 of 3000 samples
+  // unclipped, all in the toe of the curve) are off by +12%, +10%, -13%, -16%: consistent over
+  // clipping thresholds and Huber widths, and the known-times fit also leaves its largest
+  // residuals there, so either the nominal short shutter times or the 4-coefficient toe is off. Step 2: the exposures estimated
+  // as unknowns with that response held fixed (the per-frame exposure estimate of the pipeline).
+  const ExposureSweepResult calibrated = calibrate_exposure_sweep(stack.green, shutter, canon_options());
+  ASSERT_TRUE(calibrated.ok) << calibrated.reason;
+  ExposureSweepOptions options = canon_options();
+  options.prior = calibrated.response;
+  options.fix_response = true;
+  const ExposureSweepResult result = calibrate_exposure_sweep(stack.green, std::nullopt, options);
+  ASSERT_TRUE(result.ok) << result.reason;
+  EXPECT_EQ(result.resolution, SweepAmbiguityResolution::FixedPriorResponse);
+  const auto ref = static_cast<std::size_t>(result.reference_image);
+  int compared = 0;
+  for (std::size_t j = 0; j < stack.green.size(); ++j) {
+    const auto& info = result.images[j];
+    const double expected = shutter[j] / shutter[ref];
+    std::printf("  %s: shutter %.5g s, used %d, ratio %.5g, shutter ratio %.5g, error %+.2f%%, rms %.2f %s\n",
+                stack.times[j].name.c_str(), shutter[j], info.used ? 1 : 0, info.ratio, expected,
+                info.used ? 100.0 * (info.ratio / expected - 1.0) : 0.0, info.residual_rms_grey, info.note.c_str());
+    if (!info.used) continue;
+    ++compared;
+    // 13 s .. 1/4 s: within 5%. 1/60 .. 1/400 s: 8-17% off (see the report in the header of
+    // this test), held to 20% so that a regression shows.
+    EXPECT_NEAR(info.ratio / expected, 1.0, j < 8 ? 0.05 : 0.20) << stack.times[j].name;
+  }
+  std::printf("estimated exposures: reference %s, rms %.3f grey\n", stack.times[ref].name.c_str(), result.residual_rms_grey);
+  EXPECT_GE(compared, 12);
+}
+
+void expect_degenerate(const ExposureSweepResult& result, const std::string& reason_part) {
+  EXPECT_FALSE(result.ok);
+  EXPECT_NE(result.reason.find(reason_part), std::string::npos) << result.reason;
+  EXPECT_TRUE(result.response.coefficients().allFinite());
+  EXPECT_TRUE(std::isfinite(result.residual_rms_grey));
+  for (const auto& image : result.images) {
+    EXPECT_TRUE(std::isfinite(image.exposure));
+    EXPECT_TRUE(std::isfinite(image.ratio));
+  }
+}
+
+TEST(ExposureSweep, DegenerateInputKeepsPriorAndSaysWhy) {
+  ExposureSweepOptions options;
+  options.prior = ResponseModel::from_preset(ResponsePreset::Log);
+  const std::vector<cv::Mat> black(4, cv::Mat(64, 64, CV_8UC1, cv::Scalar(0)));
+  const std::vector<cv::Mat> white(4, cv::Mat(64, 64, CV_8UC1, cv::Scalar(255)));
+  for (const auto& times : {std::optional<std::vector<double>>{}, std::optional<std::vector<double>>{{1.0, 2.0, 4.0, 8.0}}}) {
+    const auto r_black = calibrate_exposure_sweep(black, times, options);
+    expect_degenerate(r_black, "black or saturated");
+    EXPECT_EQ(r_black.response.coefficients(), options.prior.coefficients());
+    EXPECT_NE(r_black.images[0].note.find("mostly black"), std::string::npos);
+    const auto r_white = calibrate_exposure_sweep(white, times, options);
+    expect_degenerate(r_white, "black or saturated");
+    EXPECT_NE(r_white.images[0].note.find("mostly saturated"), std::string::npos);
+  }
+  const auto sweep = render_sweep(ResponseModel::from_preset(ResponsePreset::Gamma), kExposures, 0.7, 13);
+  expect_degenerate(calibrate_exposure_sweep({sweep[0]}, std::nullopt, options), "fewer than 2 images");
+  expect_degenerate(calibrate_exposure_sweep({}, std::nullopt, options), "fewer than 2 images");
+  const std::vector<cv::Mat> same = {sweep[1], sweep[1].clone(), sweep[1].clone()};
+  expect_degenerate(calibrate_exposure_sweep(same, std::nullopt, options), "no exposure variation");
+  expect_degenerate(calibrate_exposure_sweep(same, std::vector<double>{0.5, 0.5, 0.5}, options), "no exposure variation");
+  expect_degenerate(calibrate_exposure_sweep({sweep[0], sweep[1]}, std::vector<double>{1.0}, options), "exposure times");
+  expect_degenerate(calibrate_exposure_sweep({sweep[0], sweep[1]}, std::vector<double>{1.0, std::nan("")}, options),
+                    "not positive");
+  // A few unclipped pixels only: too few tracks.
+  std::vector<cv::Mat> sparse = {cv::Mat(64, 64, CV_8UC1, cv::Scalar(0)), cv::Mat(64, 64, CV_8UC1, cv::Scalar(0))};
+  for (int k = 0; k < 2; ++k) {
+    sparse[static_cast<std::size_t>(k)](cv::Rect(20, 20, 6, 6)).setTo(cv::Scalar(60 + 60 * k));
+  }
+  ExposureSweepOptions sparse_options = options;
+  sparse_options.min_unclipped_fraction = 0.0;
+  expect_degenerate(calibrate_exposure_sweep(sparse, std::nullopt, sparse_options), "too few unclipped tracks");
+  cv::Mat colour(64, 64, CV_8UC3, cv::Scalar(1, 2, 3));
+  expect_degenerate(calibrate_exposure_sweep({colour, colour}, std::nullopt, options), "8-bit grey");
+}
+
+TEST(ExposureTimes, ReadsNamesAndFractionsAndNamesTheBadLine) {
+  const fs::path dir = fs::temp_directory_path() / ("nirslam_sweep_times_" + std::to_string(std::random_device{}()));
+  fs::create_directories(dir);
+  {
+    std::ofstream out(dir / "good.txt");
+    out << "A picture set\nhttp://example.org/x\n\n# comment\nimg01: 13\nimg02:   1/250\n";
+  }
+  const auto times = read_exposure_times(dir / "good.txt");
+  ASSERT_EQ(times.size(), 2u);
+  EXPECT_EQ(times[0].name, "img01");
+  EXPECT_DOUBLE_EQ(times[0].seconds, 13.0);
+  EXPECT_DOUBLE_EQ(times[1].seconds, 1.0 / 250.0);
+  {
+    std::ofstream out(dir / "bad.txt");
+    out << "img01: 13\nimg02: 1/0\n";
+  }
+  try {
+    read_exposure_times(dir / "bad.txt");
+    FAIL() << "expected InputError";
+  } catch (const InputError& error) {
+    EXPECT_EQ(error.line(), 2);
+    EXPECT_EQ(error.file(), dir / "bad.txt");
+  }
+  {
+    std::ofstream out(dir / "none.txt");
+    out << "just text\n";
+  }
+  EXPECT_THROW(read_exposure_times(dir / "none.txt"), InputError);
+  EXPECT_THROW(read_exposure_times(dir / "missing.txt"), InputError);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace nirslam

@@ -29,36 +29,6 @@ std::string to_string(SweepAmbiguityResolution resolution) {
 
 namespace {
 
-// Legendre polynomial P_n(t), n = 0..3, and its derivative.
-double legendre(int n, double t) {
-  switch (n) {
-    case 0: return 1.0;
-    case 1: return t;
-    case 2: return 0.5 * (3.0 * t * t - 1.0);
-    default: return 0.5 * (5.0 * t * t * t - 3.0 * t);
-  }
-}
-double legendre_derivative(int n, double t) {
-  switch (n) {
-    case 0: return 0.0;
-    case 1: return 1.0;
-    case 2: return 3.0 * t;
-    default: return 0.5 * (15.0 * t * t - 3.0);
-  }
-}
-
-// h_k(u) = u (1 - u) P_{k-1}(2u - 1) and dh_k/du, k = 1..4 (stored at k - 1).
-void basis_in_u(double u, Eigen::Vector4d& h, Eigen::Vector4d& dh_du) {
-  const double t = 2.0 * u - 1.0;
-  const double w = u * (1.0 - u);
-  const double dw = 1.0 - 2.0 * u;
-  for (int k = 0; k < 4; ++k) {
-    const double p = legendre(k, t);
-    h[k] = w * p;
-    dh_du[k] = dw * p + w * 2.0 * legendre_derivative(k, t);
-  }
-}
-
 double huber_cost(double r, double delta) {
   const double a = std::abs(r);
   return a <= delta ? r * r : 2.0 * delta * a - delta * delta;
@@ -90,7 +60,7 @@ ExposureSweepResult degenerate(ExposureSweepResult result, const ExposureSweepOp
 double sweep_prediction(const Eigen::Vector4d& c, double log_irradiance, Eigen::Matrix<double, 5, 1>* jacobian) {
   const double u = std::exp(0.5 * log_irradiance);
   Eigen::Vector4d h, dh;
-  basis_in_u(u, h, dh);
+  response_basis_in_sqrt_irradiance(u, h, dh);
   const double f = u + c.dot(h);
   if (jacobian != nullptr) {
     jacobian->head<4>() = h;
@@ -306,7 +276,7 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
     cost += prior_weight * (cc - c_prior).squaredNorm();
     Eigen::Vector4d h, dh;
     for (int g = 0; g < kMonotonicGrid; ++g) {
-      basis_in_u(static_cast<double>(g) / (kMonotonicGrid - 1), h, dh);
+      response_basis_in_sqrt_irradiance(static_cast<double>(g) / (kMonotonicGrid - 1), h, dh);
       const double slope = 1.0 + cc.dot(dh);
       if (slope < kMinSlope) cost += monotonic_weight * (slope - kMinSlope) * (slope - kMinSlope);
     }
@@ -351,7 +321,7 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
     {
       Eigen::Vector4d h, dh;
       for (int g = 0; g < kMonotonicGrid; ++g) {
-        basis_in_u(static_cast<double>(g) / (kMonotonicGrid - 1), h, dh);
+        response_basis_in_sqrt_irradiance(static_cast<double>(g) / (kMonotonicGrid - 1), h, dh);
         const double slope = 1.0 + c.dot(dh);
         if (slope < kMinSlope) {
           H_gg.topLeftCorner<4, 4>().noalias() += monotonic_weight * dh * dh.transpose();

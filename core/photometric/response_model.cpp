@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/common/text_fields.hpp"
 
 namespace nirslam {
 
@@ -39,26 +40,14 @@ double legendre_derivative(int n, double t) {
 
 // f as a function of u = sqrt(X), and df/du.
 double f_of_u(const Eigen::Vector4d& c, double u) {
-  const double t = 2.0 * u - 1.0;
-  double s = 0.0;
-  for (int k = 0; k < 4; ++k) s += c[k] * legendre(k, t);
-  return u + u * (1.0 - u) * s;
+  Eigen::Vector4d h, dh_du;
+  response_basis_in_sqrt_irradiance(u, h, dh_du);
+  return u + c.dot(h);
 }
 double df_du(const Eigen::Vector4d& c, double u) {
-  const double t = 2.0 * u - 1.0;
-  double s = 0.0, ds_dt = 0.0;
-  for (int k = 0; k < 4; ++k) {
-    s += c[k] * legendre(k, t);
-    ds_dt += c[k] * legendre_derivative(k, t);
-  }
-  return 1.0 + (1.0 - 2.0 * u) * s + u * (1.0 - u) * 2.0 * ds_dt;
-}
-
-std::string lowercase(std::string_view text) {
-  std::string out(text);
-  std::transform(out.begin(), out.end(), out.begin(),
-                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-  return out;
+  Eigen::Vector4d h, dh_du;
+  response_basis_in_sqrt_irradiance(u, h, dh_du);
+  return 1.0 + c.dot(dh_du);
 }
 
 [[noreturn]] void throw_write_error(const std::filesystem::path& file, const char* what, int error) {
@@ -67,6 +56,17 @@ std::string lowercase(std::string_view text) {
 }
 
 }  // namespace
+
+void response_basis_in_sqrt_irradiance(double u, Eigen::Vector4d& h, Eigen::Vector4d& dh_du) {
+  const double t = 2.0 * u - 1.0;
+  const double w = u * (1.0 - u);
+  const double dw_du = 1.0 - 2.0 * u;
+  for (int k = 0; k < 4; ++k) {
+    const double p = legendre(k, t);
+    h[k] = w * p;
+    dh_du[k] = dw_du * p + w * 2.0 * legendre_derivative(k, t);
+  }
+}
 
 std::string_view to_string(ResponsePreset preset) {
   switch (preset) {

@@ -84,6 +84,11 @@ private:
   Eigen::Vector4d c_ = Eigen::Vector4d::Zero();
 };
 
+// The basis in u = sqrt(X): h_k(u) = u (1 - u) P_{k-1}(2u - 1) for k = 1..4 (stored at k - 1),
+// with P the Legendre polynomials, and dh_k/du; f(u) = u + c . h(u). Calibration works in u (or
+// log X), where f stays smooth down to black.
+void response_basis_in_sqrt_irradiance(double u, Eigen::Vector4d& h, Eigen::Vector4d& dh_du);
+
 // The curve a preset was fitted to (for documentation and tests; the preset itself is its
 // coefficients, not this curve).
 double response_preset_reference(ResponsePreset preset, double X);

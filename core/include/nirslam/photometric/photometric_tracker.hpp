@@ -1,0 +1,127 @@
+#pragma once
+
+// The real-time front end of the online photometric calibration (issue 6, after Bergmann, Wang and
+// Cremers, "Online photometric calibration of auto exposure video"): a gain-robust pyramidal KLT
+// that follows small patches from frame to frame while the exposure changes.
+//
+// Each patch is tracked with a translation d and an affine brightness change (a, b):
+//
+//   minimise  sum_x ( I_t(x0 + x + d) - a * I_{t-1}(x0 + x) - b )^2   over (d, a, b)
+//
+// by Gauss-Newton at every pyramid level, coarse to fine. a absorbs the exposure (and gain) ratio
+// and b the offset that a non-linear response gives a patch, so tracks survive auto exposure
+// steps that break the brightness-constancy assumption of plain KLT. A forward-backward check
+// (track t-1 -> t, then back) rejects tracks that do not return to where they started.
+//
+// Intensities are fractions of full scale (grey / max_value) so 8- and 16-bit frames share the
+// thresholds. The per-frame observation of a track is its patch sampled bilinearly at the tracked
+// position (grey values, for a back end that fits f and V); the exposure estimator samples the
+// frame's `intensity` itself, applying G = f^-1 before interpolating (see exposure_estimator.hpp).
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include "nirslam/image/frame.hpp"
+
+namespace nirslam {
+
+inline constexpr int kPatchRadius = 4;                        // 9 x 9 patches
+inline constexpr int kPatchSide = 2 * kPatchRadius + 1;
+inline constexpr int kPatchPixels = kPatchSide * kPatchSide;
+// Row-major: sample (i, j) is at position + (j - kPatchRadius, i - kPatchRadius).
+using PatchSamples = Eigen::Matrix<float, kPatchPixels, 1>;
+
+struct PhotometricTrackerOptions {
+  int pyramid_levels = 3;                  // including full resolution
+  int max_iterations = 12;                 // Gauss-Newton steps per level
+  double convergence_px = 0.01;            // stop when the step is shorter (at that level)
+  int max_tracks = 200;
+  int min_tracks = 120;                    // detect new corners when fewer tracks survive
+  int grid_cols = 8;                       // detection buckets, so tracks cover the image
+  int grid_rows = 6;
+  double corner_quality = 0.01;            // relative to the strongest corner (gain invariant)
+  double min_corner_distance_px = 10.0;
+  double max_forward_backward_px = 0.5;
+  double max_residual_rms = 0.04;          // after the brightness fit, fraction of full scale
+  // Smaller eigenvalue of the patch's mean gradient tensor over its squared mean brightness (so
+  // the test does not depend on exposure): 1e-4 = gradients of about 1 % of the brightness per px.
+  double min_structure = 1.0e-4;
+  double min_brightness_gain = 0.2;        // a outside these: not the same patch
+  double max_brightness_gain = 5.0;
+  double black_level = 0.03;               // for the frame's black / saturated fractions
+  double saturation_level = 0.97;
+};
+
+// One patch tracked between two images.
+struct PatchTrack {
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();  // in the second image, pixels
+  double brightness_gain = 1.0;                         // a: I_t ~ a I_{t-1} + b
+  double brightness_bias = 0.0;                         // b, fraction of full scale
+  double residual_rms = 0.0;                            // at full resolution
+};
+
+// Pyramid of a grey image as CV_32FC1 in fractions of full scale, level 0 = full resolution.
+std::vector<cv::Mat> build_intensity_pyramid(const cv::Mat& image, int bit_depth, int levels);
+
+// Tracks the patch at `from` in pyramid `a` into pyramid `b`, starting the search at `guess`.
+// std::nullopt when the patch leaves the image, is too flat to track, or does not converge to a
+// plausible brightness change. Allocation free.
+std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>& b,
+                                      const Eigen::Vector2d& from, const Eigen::Vector2d& guess,
+                                      const PhotometricTrackerOptions& options);
+
+// Samples the patch centred at `position` (bilinear). false when it does not fit in the image.
+bool sample_patch(const cv::Mat& image, const Eigen::Vector2d& position, PatchSamples& samples);
+
+struct TrackObservation {
+  std::int64_t id = 0;
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();
+  int age = 0;                     // frames since detection; 0 = detected in this frame
+  PatchSamples samples;            // fraction of full scale, at `position`
+  double brightness_gain = 1.0;    // from the previous frame (1 for new tracks)
+};
+
+struct TrackedFrame {
+  std::int64_t frame_index = 0;
+  int width = 0;
+  int height = 0;
+  std::optional<double> exposure_ms;  // as the source reported them
+  std::optional<double> gain;
+  double black_fraction = 0.0;        // pixels at or below black_level
+  double saturated_fraction = 0.0;    // pixels at or above saturation_level
+  std::vector<TrackObservation> tracks;
+  // The frame at full resolution, CV_32FC1 in fractions of full scale (shares the tracker's
+  // buffer): the exposure estimator samples it after applying G, see exposure_estimator.hpp.
+  cv::Mat intensity;
+  int lost_tracks = 0;                // of the previous frame's tracks
+  int new_tracks = 0;
+};
+
+class PhotometricTracker {
+public:
+  explicit PhotometricTracker(PhotometricTrackerOptions options = {});
+
+  // Tracks the previous frame's patches into `frame` and tops them up with new corners.
+  // Throws std::invalid_argument for a malformed frame.
+  const TrackedFrame& process(const Frame& frame);
+  const TrackedFrame& last() const { return current_; }
+  const PhotometricTrackerOptions& options() const { return options_; }
+  void reset();
+
+private:
+  void detect(const std::vector<cv::Mat>& pyramid);
+
+  PhotometricTrackerOptions options_;
+  std::vector<cv::Mat> previous_pyramid_;
+  TrackedFrame current_;
+  std::int64_t next_id_ = 0;
+  cv::Mat detection_mask_;
+  std::vector<int> bucket_counts_;
+};
+
+}  // namespace nirslam

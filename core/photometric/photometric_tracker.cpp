@@ -1,0 +1,249 @@
+#include "nirslam/photometric/photometric_tracker.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+#include <Eigen/Cholesky>
+#include <opencv2/imgproc.hpp>
+
+namespace nirslam {
+
+namespace {
+
+// Bilinear sample of a CV_32FC1 image; the caller guarantees 0 <= x < cols - 1, 0 <= y < rows - 1.
+inline float bilinear(const cv::Mat& image, double x, double y) {
+  const int x0 = static_cast<int>(x);
+  const int y0 = static_cast<int>(y);
+  const float fx = static_cast<float>(x - x0);
+  const float fy = static_cast<float>(y - y0);
+  const float* row0 = image.ptr<float>(y0) + x0;
+  const float* row1 = image.ptr<float>(y0 + 1) + x0;
+  return (1.0f - fy) * ((1.0f - fx) * row0[0] + fx * row0[1]) + fy * ((1.0f - fx) * row1[0] + fx * row1[1]);
+}
+
+// Whether a square of half-size `radius` around p can be sampled bilinearly.
+inline bool fits(const cv::Mat& image, const Eigen::Vector2d& p, int radius) {
+  return std::isfinite(p.x()) && std::isfinite(p.y()) && p.x() - radius >= 0.0 && p.y() - radius >= 0.0 &&
+         p.x() + radius < image.cols - 1 && p.y() + radius < image.rows - 1;
+}
+
+constexpr int kTemplateSide = kPatchSide + 2;  // one extra pixel each side for the gradient
+using TemplateSamples = Eigen::Matrix<float, kTemplateSide, kTemplateSide, Eigen::RowMajor>;
+
+}  // namespace
+
+std::vector<cv::Mat> build_intensity_pyramid(const cv::Mat& image, int bit_depth, int levels) {
+  if (image.empty() || image.channels() != 1) throw std::invalid_argument("intensity pyramid: need a grey image");
+  std::vector<cv::Mat> pyramid(static_cast<std::size_t>(std::max(levels, 1)));
+  image.convertTo(pyramid[0], CV_32F, 1.0 / static_cast<double>((1u << bit_depth) - 1u));
+  for (std::size_t l = 1; l < pyramid.size(); ++l) cv::pyrDown(pyramid[l - 1], pyramid[l]);
+  return pyramid;
+}
+
+bool sample_patch(const cv::Mat& image, const Eigen::Vector2d& position, PatchSamples& samples) {
+  if (!fits(image, position, kPatchRadius)) return false;
+  for (int i = 0; i < kPatchSide; ++i)
+    for (int j = 0; j < kPatchSide; ++j)
+      samples[i * kPatchSide + j] =
+          bilinear(image, position.x() + (j - kPatchRadius), position.y() + (i - kPatchRadius));
+  return true;
+}
+
+std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>& b,
+                                      const Eigen::Vector2d& from, const Eigen::Vector2d& guess,
+                                      const PhotometricTrackerOptions& options) {
+  const int levels = static_cast<int>(std::min(a.size(), b.size()));
+  if (levels == 0) return std::nullopt;
+  // pyrDown keeps every second pixel, so level l sees full-resolution position x at x / 2^l.
+  Eigen::Vector2d p1 = guess / static_cast<double>(1 << (levels - 1));
+  PatchTrack result;
+  TemplateSamples templ;
+  PatchSamples t, tx, ty, current;
+  for (int level = levels - 1; level >= 0; --level) {
+    const double scale = 1.0 / static_cast<double>(1 << level);
+    const Eigen::Vector2d p0 = from * scale;
+    const cv::Mat& image0 = a[static_cast<std::size_t>(level)];
+    const cv::Mat& image1 = b[static_cast<std::size_t>(level)];
+    if (!fits(image0, p0, kPatchRadius + 1)) return std::nullopt;
+    for (int i = 0; i < kTemplateSide; ++i)
+      for (int j = 0; j < kTemplateSide; ++j)
+        templ(i, j) = bilinear(image0, p0.x() + (j - kPatchRadius - 1), p0.y() + (i - kPatchRadius - 1));
+    // Template and its central-difference gradient, fixed for the level (inverse-compositional
+    // style: the Jacobian does not need the warped image's gradient).
+    Eigen::Matrix2d structure = Eigen::Matrix2d::Zero();
+    for (int i = 0; i < kPatchSide; ++i)
+      for (int j = 0; j < kPatchSide; ++j) {
+        const int k = i * kPatchSide + j;
+        t[k] = templ(i + 1, j + 1);
+        tx[k] = 0.5f * (templ(i + 1, j + 2) - templ(i + 1, j));
+        ty[k] = 0.5f * (templ(i + 2, j + 1) - templ(i, j + 1));
+        const Eigen::Vector2d gradient(static_cast<double>(tx[k]), static_cast<double>(ty[k]));
+        structure += gradient * gradient.transpose();
+      }
+    if (level == 0) {
+      // Smaller eigenvalue of the mean structure tensor, relative to the patch brightness so a
+      // dark (short exposure) frame is judged as a bright one: a flat patch gives no position.
+      structure /= static_cast<double>(kPatchPixels);
+      const double mean = std::max(static_cast<double>(t.mean()), 1e-3);
+      const double tr = structure.trace();
+      const double det = structure(0, 0) * structure(1, 1) - structure(0, 1) * structure(1, 0);
+      const double lambda_min = 0.5 * (tr - std::sqrt(std::max(tr * tr - 4.0 * det, 0.0)));
+      if (!(lambda_min / (mean * mean) >= options.min_structure)) return std::nullopt;
+    }
+
+    if (!sample_patch(image1, p1, current)) return std::nullopt;
+    // Closed-form (a, b) at the start position: matching mean and contrast, so the first
+    // position steps are taken with the brightness change already roughly right.
+    const double mean0 = t.mean();
+    const double mean1 = current.mean();
+    const double sd0 = std::sqrt((t.array() - static_cast<float>(mean0)).square().mean());
+    const double sd1 = std::sqrt((current.array() - static_cast<float>(mean1)).square().mean());
+    if (!(sd0 > 1e-6)) return std::nullopt;
+    double gain = sd1 / sd0;
+    double bias = mean1 - gain * mean0;
+
+    for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+      if (iteration > 0 && !sample_patch(image1, p1, current)) return std::nullopt;
+      // r = I_t(p1 + x) - a T(x) - b;  dr/d(d) ~ a grad T, dr/da = -T, dr/db = -1.
+      Eigen::Matrix4d H = Eigen::Matrix4d::Zero();
+      Eigen::Vector4d g = Eigen::Vector4d::Zero();
+      double squared = 0.0;
+      for (int k = 0; k < kPatchPixels; ++k) {
+        const double r = current[k] - gain * t[k] - bias;
+        const Eigen::Vector4d J(gain * tx[k], gain * ty[k], -t[k], -1.0);
+        H.noalias() += J * J.transpose();
+        g += J * r;
+        squared += r * r;
+      }
+      result.residual_rms = std::sqrt(squared / kPatchPixels);
+      const Eigen::Vector4d step = -H.ldlt().solve(g);
+      if (!step.allFinite()) return std::nullopt;
+      p1 += step.head<2>();
+      gain += step[2];
+      bias += step[3];
+      if (step.head<2>().norm() < options.convergence_px) break;
+    }
+    result.brightness_gain = gain;
+    result.brightness_bias = bias;
+    if (level > 0) p1 *= 2.0;
+  }
+  result.position = p1;
+  // The residual of the final position, for the outlier test.
+  if (!sample_patch(b[0], p1, current)) return std::nullopt;
+  // t still holds the full-resolution template (level 0 is processed last).
+  result.residual_rms = std::sqrt(
+      (current.array() - static_cast<float>(result.brightness_gain) * t.array() -
+       static_cast<float>(result.brightness_bias)).square().mean());
+  if (!(result.brightness_gain >= options.min_brightness_gain && result.brightness_gain <= options.max_brightness_gain))
+    return std::nullopt;
+  return result;
+}
+
+PhotometricTracker::PhotometricTracker(PhotometricTrackerOptions options) : options_(options) {
+  if (options_.pyramid_levels < 1 || options_.max_tracks < 1 || options_.min_tracks < 0 || options_.grid_cols < 1 ||
+      options_.grid_rows < 1)
+    throw std::invalid_argument("photometric tracker: bad options");
+}
+
+void PhotometricTracker::reset() {
+  previous_pyramid_.clear();
+  current_ = {};
+}
+
+const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
+  validate_frame(frame, "photometric tracker frame");
+  std::vector<cv::Mat> pyramid = build_intensity_pyramid(frame.image, frame.bit_depth, options_.pyramid_levels);
+
+  TrackedFrame next;
+  next.frame_index = frame.index;
+  next.width = frame.width();
+  next.height = frame.height();
+  next.exposure_ms = frame.exposure_ms;
+  next.gain = frame.gain;
+
+  // Black and saturated fractions on every second pixel of every second row: plenty for a
+  // fraction, a quarter of the cost.
+  {
+    std::int64_t black = 0, saturated = 0, total = 0;
+    const float black_level = static_cast<float>(options_.black_level);
+    const float saturation_level = static_cast<float>(options_.saturation_level);
+    for (int y = 0; y < pyramid[0].rows; y += 2) {
+      const float* row = pyramid[0].ptr<float>(y);
+      for (int x = 0; x < pyramid[0].cols; x += 2) {
+        black += row[x] <= black_level;
+        saturated += row[x] >= saturation_level;
+        ++total;
+      }
+    }
+    next.black_fraction = static_cast<double>(black) / static_cast<double>(std::max<std::int64_t>(total, 1));
+    next.saturated_fraction = static_cast<double>(saturated) / static_cast<double>(std::max<std::int64_t>(total, 1));
+  }
+
+  if (!previous_pyramid_.empty() && previous_pyramid_[0].size() == pyramid[0].size()) {
+    next.tracks.reserve(current_.tracks.size() + static_cast<std::size_t>(options_.max_tracks));
+    for (const TrackObservation& old : current_.tracks) {
+      const auto forward = track_patch(previous_pyramid_, pyramid, old.position, old.position, options_);
+      if (!forward || forward->residual_rms > options_.max_residual_rms) continue;
+      const auto backward = track_patch(pyramid, previous_pyramid_, forward->position, old.position, options_);
+      if (!backward || (backward->position - old.position).norm() > options_.max_forward_backward_px) continue;
+      TrackObservation observation;
+      observation.id = old.id;
+      observation.position = forward->position;
+      observation.age = old.age + 1;
+      observation.brightness_gain = forward->brightness_gain;
+      if (!sample_patch(pyramid[0], observation.position, observation.samples)) continue;
+      next.tracks.push_back(observation);
+    }
+    next.lost_tracks = static_cast<int>(current_.tracks.size() - next.tracks.size());
+  }
+  next.intensity = pyramid[0];
+  current_ = std::move(next);
+  if (static_cast<int>(current_.tracks.size()) < options_.min_tracks) detect(pyramid);
+  previous_pyramid_ = std::move(pyramid);
+  return current_;
+}
+
+void PhotometricTracker::detect(const std::vector<cv::Mat>& pyramid) {
+  const cv::Mat& image = pyramid[0];
+  const int margin = kPatchRadius + 2;
+  if (image.cols <= 2 * margin || image.rows <= 2 * margin) return;
+  detection_mask_.create(image.size(), CV_8UC1);
+  detection_mask_.setTo(0);
+  detection_mask_(cv::Rect(margin, margin, image.cols - 2 * margin, image.rows - 2 * margin)).setTo(255);
+  const int cells = options_.grid_cols * options_.grid_rows;
+  bucket_counts_.assign(static_cast<std::size_t>(cells), 0);
+  const auto bucket = [&](const Eigen::Vector2d& p) {
+    const int cx = std::clamp(static_cast<int>(p.x() * options_.grid_cols / image.cols), 0, options_.grid_cols - 1);
+    const int cy = std::clamp(static_cast<int>(p.y() * options_.grid_rows / image.rows), 0, options_.grid_rows - 1);
+    return static_cast<std::size_t>(cy * options_.grid_cols + cx);
+  };
+  const int keep_out = static_cast<int>(std::lround(options_.min_corner_distance_px));
+  for (const TrackObservation& track : current_.tracks) {
+    cv::circle(detection_mask_, cv::Point(static_cast<int>(track.position.x()), static_cast<int>(track.position.y())),
+               keep_out, cv::Scalar(0), cv::FILLED);
+    ++bucket_counts_[bucket(track.position)];
+  }
+  const int wanted = options_.max_tracks - static_cast<int>(current_.tracks.size());
+  if (wanted <= 0) return;
+  std::vector<cv::Point2f> corners;
+  // Corner quality is relative to the strongest corner, so detection does not depend on exposure.
+  cv::goodFeaturesToTrack(image, corners, 2 * wanted, options_.corner_quality, options_.min_corner_distance_px,
+                          detection_mask_, 5);
+  const int per_cell = (options_.max_tracks + cells - 1) / cells;
+  for (const cv::Point2f& corner : corners) {
+    if (static_cast<int>(current_.tracks.size()) >= options_.max_tracks) break;
+    TrackObservation observation;
+    observation.position = Eigen::Vector2d(corner.x, corner.y);
+    int& count = bucket_counts_[bucket(observation.position)];
+    if (count >= per_cell) continue;
+    if (!sample_patch(image, observation.position, observation.samples)) continue;
+    observation.id = next_id_++;
+    ++count;
+    current_.tracks.push_back(observation);
+    ++current_.new_tracks;
+  }
+}
+
+}  // namespace nirslam

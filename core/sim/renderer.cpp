@@ -240,6 +240,23 @@ std::array<float, kBeamLutSize + 1> make_beam_lut(const Illuminator& light) {
   return lut;
 }
 
+// What a Shader reads by reference, built once per frame (or per probed pixel).
+struct ShadingTables {
+  ShadingTables(const Scene& scene_in, const Illuminator& light) : scene(scene_in), yaw(scene_in.primitives.size()),
+                                                                    beam_lut(make_beam_lut(light)) {
+    for (std::size_t i = 0; i < yaw.size(); ++i)
+      yaw[i] = {std::cos(scene.primitives[i].yaw), std::sin(scene.primitives[i].yaw)};
+  }
+  Shader shader(const Lighting& lighting) const {
+    return Shader{scene, yaw, static_cast<float>(lighting.illuminator.axial_intensity()),
+                  static_cast<float>(lighting.ambient_irradiance), static_cast<float>(lighting.sky_radiance), beam_lut};
+  }
+
+  const Scene& scene;
+  std::vector<detail::YawCache> yaw;
+  std::array<float, kBeamLutSize + 1> beam_lut;
+};
+
 SlotState slot_state(const SE3& pose, const Illuminator& light, const Scene& scene) {
   SlotState s;
   s.R = pose.rotation_matrix().cast<float>();
@@ -350,12 +367,8 @@ void Renderer::render(std::span<const SE3> poses, const Lighting& lighting, cv::
   if (depth) depth->create(height_, width_, CV_32FC1);
 
   const Scene& scene = *scene_;
-  std::vector<detail::YawCache> yaw(scene.primitives.size());
-  for (std::size_t i = 0; i < yaw.size(); ++i)
-    yaw[i] = {std::cos(scene.primitives[i].yaw), std::sin(scene.primitives[i].yaw)};
-  const auto lut = make_beam_lut(lighting.illuminator);
-  const Shader shader{scene, yaw, static_cast<float>(lighting.illuminator.axial_intensity()),
-                      static_cast<float>(lighting.ambient_irradiance), static_cast<float>(lighting.sky_radiance), lut};
+  const ShadingTables tables(scene, lighting.illuminator);
+  const Shader shader = tables.shader(lighting);
 
   const std::vector<Unit> units = make_units(scene);
   std::vector<SlotState> state;
@@ -422,7 +435,7 @@ void Renderer::render(std::span<const SE3> poses, const Lighting& lighting, cv::
                 prim[s] = dcs[s].squaredNorm() > 0.0f ? best[l] : -2;
                 if (prim[s] >= 0)
                   face[s] = detail::hit_face_at(scene.primitives[static_cast<std::size_t>(prim[s])],
-                                                yaw[static_cast<std::size_t>(prim[s])], st.centre + t[l] * dir[s]);
+                                                tables.yaw[static_cast<std::size_t>(prim[s])], st.centre + t[l] * dir[s]);
               }
             }
           } else {
@@ -510,12 +523,8 @@ Renderer::PixelSample Renderer::render_pixel(const SE3& pose, const Lighting& li
   const auto ray_cam = camera_->unproject(pixel);
   if (!ray_cam) return sample;
   const Scene& scene = *scene_;
-  std::vector<detail::YawCache> yaw(scene.primitives.size());
-  for (std::size_t i = 0; i < yaw.size(); ++i)
-    yaw[i] = {std::cos(scene.primitives[i].yaw), std::sin(scene.primitives[i].yaw)};
-  const auto lut = make_beam_lut(lighting.illuminator);
-  const Shader shader{scene, yaw, static_cast<float>(lighting.illuminator.axial_intensity()),
-                      static_cast<float>(lighting.ambient_irradiance), static_cast<float>(lighting.sky_radiance), lut};
+  const ShadingTables tables(scene, lighting.illuminator);
+  const Shader shader = tables.shader(lighting);
   const SlotState st = slot_state(pose, lighting.illuminator, scene);
   std::vector<Candidate> all(scene.primitives.size());
   for (std::size_t i = 0; i < all.size(); ++i) all[i] = {static_cast<int>(i), 0.0f, 0};

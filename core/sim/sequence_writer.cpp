@@ -195,6 +195,29 @@ void write_sheet(const SimulationOutput& output, const std::vector<cv::Mat>& fra
               {cv::IMWRITE_PNG_COMPRESSION, 9});
 }
 
+// The folders and text files both writers produce: images/ (and depth/), the calibration files,
+// times.txt, groundtruth.txt and one per-image table, with their headers.
+struct SequenceFiles {
+  SequenceFiles(const Simulator& sim, const fs::path& folder, const SimulationOutput& output,
+                const std::string& table_name, const std::string& table_header)
+      // The folders must exist before the first file opens: prepare() runs first.
+      : times((prepare(sim, folder, output), folder / "times.txt")),
+        truth(folder / "groundtruth.txt"),
+        table(folder / table_name) {
+    truth.write("# timestamp tx ty tz qx qy qz qw  (T_world_cam: camera to world, metres)\n");
+    table.write(table_header);
+  }
+  static void prepare(const Simulator& sim, const fs::path& folder, const SimulationOutput& output) {
+    create_folder(folder / "images");
+    if (output.write_depth) create_folder(folder / "depth");
+    write_calibration(sim, folder);
+  }
+
+  TextFile times;
+  TextFile truth;
+  TextFile table;
+};
+
 }  // namespace
 
 void write_dso_camera_file(const fs::path& file, const CameraModel& camera) {
@@ -247,14 +270,11 @@ SequenceSummary write_simulated_sequence(const SimulatorOptions& options, const 
                                          const SimulationOutput& output, const SimulationProgress& progress) {
   if (options.frames <= 0) throw std::invalid_argument("simulate: the number of frames must be positive");
   Simulator sim(options);
-  create_folder(folder / "images");
-  if (output.write_depth) create_folder(folder / "depth");
-  write_calibration(sim, folder);
-  TextFile times(folder / "times.txt");
-  TextFile truth(folder / "groundtruth.txt");
-  TextFile frames_csv(folder / "frames.csv");
-  truth.write("# timestamp tx ty tz qx qy qz qw  (T_world_cam: camera to world, metres)\n");
-  frames_csv.write("index,file,timestamp_s,exposure_ms,gain,illuminator_power_w,mean_grey\n");
+  SequenceFiles files(sim, folder, output, "frames.csv",
+                      "index,file,timestamp_s,exposure_ms,gain,illuminator_power_w,mean_grey\n");
+  TextFile& times = files.times;
+  TextFile& truth = files.truth;
+  TextFile& frames_csv = files.table;
 
   const std::int64_t n = options.frames;
   const int sheet_count = std::max(1, std::min<int>(output.contact_sheet_frames, static_cast<int>(n)));
@@ -314,14 +334,11 @@ SequenceSummary write_power_sweep(const SimulatorOptions& options, const PowerSw
   SimulatorOptions o = options;
   o.frames = 0;
   Simulator sim(o);
-  create_folder(folder / "images");
-  if (output.write_depth) create_folder(folder / "depth");
-  write_calibration(sim, folder);
-  TextFile times(folder / "times.txt");
-  TextFile truth(folder / "groundtruth.txt");
-  TextFile csv(folder / "sweep.csv");
-  truth.write("# timestamp tx ty tz qx qy qz qw  (T_world_cam: camera to world, metres)\n");
-  csv.write("file,viewpoint,frame_index,timestamp_s,power_w,exposure_ms,gain,mean_grey\n");
+  SequenceFiles files(sim, folder, output, "sweep.csv",
+                      "file,viewpoint,frame_index,timestamp_s,power_w,exposure_ms,gain,mean_grey\n");
+  TextFile& times = files.times;
+  TextFile& truth = files.truth;
+  TextFile& csv = files.table;
 
   const std::int64_t total = sweep.viewpoints * static_cast<std::int64_t>(sweep.powers_w.size());
   SequenceSummary summary;

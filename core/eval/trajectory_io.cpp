@@ -20,6 +20,31 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// The data lines of a trajectory file, trimmed: blank lines and '#' comments are skipped, and an
+// EuRoC ground-truth header comment is noted (it tells EuRoC CSV from other comma files).
+class DataLines {
+public:
+  explicit DataLines(std::istream& in) : in_(in) {}
+  std::optional<std::string_view> next() {
+    while (std::getline(in_, text_)) {
+      ++number_;
+      const std::string_view line = trim(text_);
+      if (line.empty()) continue;
+      if (line.front() != '#') return line;
+      if (line.find("p_RS_R_x") != std::string_view::npos) euroc_header_ = true;
+    }
+    return std::nullopt;
+  }
+  int number() const { return number_; }  // of the line last returned, from 1
+  bool euroc_header() const { return euroc_header_; }
+
+private:
+  std::istream& in_;
+  std::string text_;
+  int number_ = 0;
+  bool euroc_header_ = false;
+};
+
 struct FormatSpec {
   TrajectoryFormat format;
   std::size_t min_fields;
@@ -206,21 +231,14 @@ Trajectory parse_trajectory(std::istream& in, const fs::path& file, const Trajec
   trajectory.source = file;
   TrajectoryFormat format = options.format;
   int detected_on = 0;
-  bool euroc_header = false;
   StampOrder order;
-  int number = 0;
-  for (std::string text; std::getline(in, text);) {
-    ++number;
-    const std::string_view line = trim(text);
-    if (line.empty()) continue;
-    if (line.front() == '#') {
-      if (line.find("p_RS_R_x") != std::string_view::npos) euroc_header = true;
-      continue;
-    }
-    const auto fields = split_fields(line);
-    const bool has_comma = line.find(',') != std::string_view::npos;
+  DataLines lines(in);
+  while (const auto line = lines.next()) {
+    const int number = lines.number();
+    const auto fields = split_fields(*line);
+    const bool has_comma = line->find(',') != std::string_view::npos;
     if (format == TrajectoryFormat::Auto) {
-      const auto detected = format_of_fields(fields, has_comma, euroc_header);
+      const auto detected = format_of_fields(fields, has_comma, lines.euroc_header());
       if (!detected)
         throw InputError(file, number, "cannot tell the trajectory format from " + std::to_string(fields.size()) +
                                            " fields: expected TUM (8 numbers), KITTI (12), total station "
@@ -313,20 +331,13 @@ Trajectory read_trajectory(const fs::path& file, TrajectoryFormat format) {
 TrajectoryFormat detect_trajectory_format(const fs::path& file) {
   std::ifstream in(file);
   if (!in) throw InputError(file, fs::exists(file) ? "cannot open" : "does not exist");
-  bool euroc_header = false;
-  int number = 0;
-  for (std::string text; std::getline(in, text);) {
-    ++number;
-    const std::string_view line = trim(text);
-    if (line.empty()) continue;
-    if (line.front() == '#') {
-      if (line.find("p_RS_R_x") != std::string_view::npos) euroc_header = true;
-      continue;
-    }
-    const auto fields = split_fields(line);
-    if (const auto format = format_of_fields(fields, line.find(',') != std::string_view::npos, euroc_header))
+  DataLines lines(in);
+  if (const auto line = lines.next()) {
+    const auto fields = split_fields(*line);
+    if (const auto format = format_of_fields(fields, line->find(',') != std::string_view::npos, lines.euroc_header()))
       return *format;
-    throw InputError(file, number, "cannot tell the trajectory format from " + std::to_string(fields.size()) + " fields");
+    throw InputError(file, lines.number(),
+                     "cannot tell the trajectory format from " + std::to_string(fields.size()) + " fields");
   }
   throw InputError(file, "holds no poses (only blank or '#' comment lines)");
 }

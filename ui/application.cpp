@@ -24,7 +24,7 @@ bool begin_tile(const char* name, const ScreenRect& rect, ImGuiWindowFlags flags
 }  // namespace
 
 Application::Application(const std::filesystem::path& shader_dir, CommandSink post)
-    : post_(std::move(post)), feed_(shader_dir) {}
+    : post_(std::move(post)), feed_(shader_dir), view3d_(shader_dir) {}
 
 Application::Layout Application::compute_layout(ImVec2 display) const {
   const ImGuiStyle& style = ImGui::GetStyle();
@@ -45,18 +45,24 @@ Application::Layout Application::compute_layout(ImVec2 display) const {
   }
   // The measurement column: about a third of the width, readable at any window size.
   const float width = std::clamp(std::round(0.34f * w), std::min(380.0f, 0.5f * w), 600.0f);
-  const float split = !panels.entropy ? w : (panels.feed || panels.illumination) ? w - width : 0.0f;
+  const bool left_panels = panels.feed || panels.view3d || panels.illumination || panels.photometric;
+  const float split = !panels.entropy ? w : left_panels ? w - width : 0.0f;
   if (panels.entropy) layout.entropy = {ImVec2(split, top), ImVec2(w, bottom)};
-  // Under the feed, a strip for the illumination panel: wide enough for its metrics and wizard
-  // beside its sweep plot, short enough to leave the feed most of the height.
+  // Under the feed and the 3-D view, a strip for the illumination and photometric tabs: wide
+  // enough for the plots side by side, short enough to leave the views most of the height.
+  const bool strip = panels.illumination || panels.photometric;
+  const bool views = panels.feed || panels.view3d;
   float strip_top = bottom;
-  if (panels.illumination) {
+  if (strip) {
     const float middle = bottom - top;
-    strip_top = panels.feed ? bottom - std::clamp(std::round(0.36f * middle), std::min(240.0f, std::round(0.45f * middle)), 360.0f)
-                            : top;
-    layout.illumination = {ImVec2(0.0f, strip_top), ImVec2(split, bottom)};
+    strip_top = views ? bottom - std::clamp(std::round(0.36f * middle), std::min(240.0f, std::round(0.45f * middle)), 360.0f)
+                      : top;
+    layout.strip = {ImVec2(0.0f, strip_top), ImVec2(split, bottom)};
   }
-  if (panels.feed) layout.feed = {ImVec2(0.0f, top), ImVec2(split, strip_top)};
+  // The feed keeps the larger share: a 4:3 frame needs more width than the 3-D view.
+  const float view_split = !panels.view3d ? split : !panels.feed ? 0.0f : std::round(0.55f * split);
+  if (panels.feed) layout.feed = {ImVec2(0.0f, top), ImVec2(view_split, strip_top)};
+  if (panels.view3d) layout.view3d = {ImVec2(view_split, top), ImVec2(split, strip_top)};
   return layout;
 }
 
@@ -80,10 +86,13 @@ void Application::draw(const Snapshot& snapshot) {
     if (begin_tile("Image quality###entropy", layout_.entropy, kTileFlags)) entropy_.draw(snapshot);
     ImGui::End();
   }
-  if (panels.illumination) {
-    if (begin_tile("Illumination###illumination", layout_.illumination, kTileFlags)) illumination_.draw(snapshot, post_);
+  if (panels.view3d) {
+    ImGui::PushStyleVar(ImGuiStyleVar_WindowPadding, ImVec2(8.0f, 6.0f));
+    if (begin_tile("3-D view###view3d", layout_.view3d, kTileFlags)) view3d_.draw(snapshot);
     ImGui::End();
+    ImGui::PopStyleVar();
   }
+  if (panels.illumination || panels.photometric) draw_strip(snapshot);
   if (panels.status) {
     ImGui::PushStyleVar(ImGuiStyleVar_WindowPadding, ImVec2(10.0f, 5.0f));
     ImGui::PushStyleColor(ImGuiCol_WindowBg, to_vec4(rgba(24, 26, 30)));
@@ -92,6 +101,34 @@ void Application::draw(const Snapshot& snapshot) {
     ImGui::PopStyleColor();
     ImGui::PopStyleVar();
   }
+}
+
+void Application::draw_strip(const Snapshot& snapshot) {
+  const bool both = panels.illumination && panels.photometric;
+  const char* title = both ? "##strip" : panels.illumination ? "Illumination###strip" : "Photometric###strip";
+  if (begin_tile(title, layout_.strip, both ? kBarFlags : kTileFlags)) {
+    if (!both) {
+      if (panels.illumination)
+        illumination_.draw(snapshot, post_);
+      else
+        photometric_.draw(snapshot);
+    } else if (ImGui::BeginTabBar("##strip_tabs")) {
+      const auto flags = [this](StripTab tab) {
+        return requested_tab_ == tab ? ImGuiTabItemFlags_SetSelected : ImGuiTabItemFlags_None;
+      };
+      if (ImGui::BeginTabItem("Illumination", nullptr, flags(StripTab::Illumination))) {
+        illumination_.draw(snapshot, post_);
+        ImGui::EndTabItem();
+      }
+      if (ImGui::BeginTabItem("Photometric", nullptr, flags(StripTab::Photometric))) {
+        photometric_.draw(snapshot);
+        ImGui::EndTabItem();
+      }
+      requested_tab_.reset();
+      ImGui::EndTabBar();
+    }
+  }
+  ImGui::End();
 }
 
 void Application::handle_shortcuts(const Snapshot& snapshot) {

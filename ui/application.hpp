@@ -1,6 +1,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 
 #include <imgui.h>
 
@@ -10,7 +11,9 @@
 #include "ui/panels/entropy_panel.hpp"
 #include "ui/panels/feed_panel.hpp"
 #include "ui/panels/illumination_panel.hpp"
+#include "ui/panels/photometric_panel.hpp"
 #include "ui/panels/status_bar.hpp"
+#include "ui/panels/trajectory_panel.hpp"
 #include "ui/widgets.hpp"
 
 namespace nirslam::ui {
@@ -21,6 +24,8 @@ struct PanelSet {
   bool feed = true;
   bool entropy = true;
   bool illumination = true;
+  bool photometric = true;
+  bool view3d = true;
   bool status = true;
 };
 
@@ -28,9 +33,9 @@ struct PanelSet {
 // snapshot. It reads snapshots and posts commands; it never waits on the worker.
 //
 // Dear ImGui 1.86 (Debian) has no docking branch, so the layout is a fixed tiling of windows
-// that follows the display size: control strip on top, status line at the bottom, the feed on
-// the left with the illumination strip under it, and the image-quality column on the right.
-// Nothing overlaps.
+// that follows the display size: control strip on top, status line at the bottom, the feed and
+// the 3-D view side by side on the left with a strip under them (illumination and photometric
+// curves as tabs), and the image-quality column on the right. Nothing overlaps.
 class Application {
 public:
   // Loads the panels' shaders from `shader_dir` (see gl::find_shader_dir()); throws
@@ -44,8 +49,9 @@ public:
   struct Layout {
     ScreenRect controls;
     ScreenRect feed;
+    ScreenRect view3d;
     ScreenRect entropy;
-    ScreenRect illumination;
+    ScreenRect strip;  // the illumination and photometric tabs
     ScreenRect status;
   };
   // The tiling for a display size with the current ImGui style and font (call inside a frame).
@@ -56,16 +62,26 @@ public:
   FeedPanel& feed() { return feed_; }
   EntropyPanel& entropy() { return entropy_; }
   IlluminationPanel& illumination() { return illumination_; }
+  PhotometricPanel& photometric() { return photometric_; }
+  TrajectoryPanel& view3d() { return view3d_; }
+
+  enum class StripTab { Illumination, Photometric };
+  // The tab to bring to the front on the next draw (the tab bar remembers the operator's choice).
+  void select_tab(StripTab tab) { requested_tab_ = tab; }
 
 private:
   void handle_shortcuts(const Snapshot& snapshot);
+  void draw_strip(const Snapshot& snapshot);
 
   CommandSink post_;
   ControlBar controls_;
   FeedPanel feed_;
   EntropyPanel entropy_;
   IlluminationPanel illumination_;
+  PhotometricPanel photometric_;
+  TrajectoryPanel view3d_;
   StatusBar status_;
+  std::optional<StripTab> requested_tab_;
   Layout layout_;
 };
 

@@ -40,8 +40,8 @@ TEST_F(LayoutTest, TilesFillTheDisplayWithoutOverlapAtAnySize) {
     SCOPED_TRACE(display.x);
     Application::Layout layout;
     offscreen.frame([&] { layout = app.compute_layout(display); });
-    const ScreenRect tiles[] = {layout.controls, layout.feed, layout.entropy, layout.illumination, layout.status};
-    constexpr int kTiles = 5;
+    const ScreenRect tiles[] = {layout.controls, layout.feed, layout.view3d, layout.entropy, layout.strip, layout.status};
+    constexpr int kTiles = 6;
     float area = 0.0f;
     for (int i = 0; i < kTiles; ++i) {
       EXPECT_FALSE(tiles[i].empty()) << "tile " << i;
@@ -51,16 +51,20 @@ TEST_F(LayoutTest, TilesFillTheDisplayWithoutOverlapAtAnySize) {
     EXPECT_FLOAT_EQ(area, display.x * display.y) << "the tiles cover the display";
     EXPECT_EQ(layout.controls.min.y, 0.0f);
     EXPECT_EQ(layout.status.max.y, display.y);
-    EXPECT_EQ(layout.feed.max.x, layout.entropy.min.x);
-    EXPECT_GT(layout.feed.width(), layout.entropy.width()) << "the feed gets the larger share";
+    // Feed and 3-D view side by side, the feed wider; the quality column on the right.
+    EXPECT_EQ(layout.feed.max.x, layout.view3d.min.x);
+    EXPECT_EQ(layout.view3d.max.x, layout.entropy.min.x);
+    EXPECT_EQ(layout.feed.min.y, layout.view3d.min.y);
+    EXPECT_EQ(layout.feed.max.y, layout.view3d.max.y);
+    EXPECT_GT(layout.feed.width(), layout.view3d.width()) << "the feed gets the larger share";
     EXPECT_GE(layout.entropy.width(), 380.0f);
-    // The illumination strip sits under the feed, as wide as it, shorter than it.
-    EXPECT_EQ(layout.illumination.min.y, layout.feed.max.y);
-    EXPECT_EQ(layout.illumination.min.x, layout.feed.min.x);
-    EXPECT_EQ(layout.illumination.max.x, layout.feed.max.x);
-    EXPECT_EQ(layout.illumination.max.y, layout.status.min.y);
-    EXPECT_GE(layout.illumination.height(), std::min(240.0f, std::round(0.45f * (layout.status.min.y - layout.controls.max.y))));
-    EXPECT_GT(layout.feed.height(), layout.illumination.height());
+    // The illumination / photometric strip sits under both views, as wide as they are, shorter.
+    EXPECT_EQ(layout.strip.min.y, layout.feed.max.y);
+    EXPECT_EQ(layout.strip.min.x, layout.feed.min.x);
+    EXPECT_EQ(layout.strip.max.x, layout.view3d.max.x);
+    EXPECT_EQ(layout.strip.max.y, layout.status.min.y);
+    EXPECT_GE(layout.strip.height(), std::min(240.0f, std::round(0.45f * (layout.status.min.y - layout.controls.max.y))));
+    EXPECT_GT(layout.feed.height(), layout.strip.height());
   }
 }
 
@@ -109,7 +113,7 @@ TEST_F(LayoutTest, RendersTheRunningDemoInEveryPanel) {
   // prior's recommended power for the default scene on its plot.
   const ScreenRect& banner = app.illumination().banner_rect();
   ASSERT_FALSE(banner.empty());
-  EXPECT_TRUE(overlaps(banner, app.layout().illumination));
+  EXPECT_TRUE(overlaps(banner, app.layout().strip));
   EXPECT_EQ(shown->exposure.verdict, ExposureVerdict::Ok) << shown->exposure.message;
   EXPECT_TRUE(near(pixel(shot, ImVec2(banner.max.x - 4.0f, banner.centre().y)), colours::banner_ok, 3));
   EXPECT_FALSE(app.illumination().plot_rect().empty());

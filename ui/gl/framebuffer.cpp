@@ -13,6 +13,7 @@ Framebuffer::~Framebuffer() { release(); }
 Framebuffer::Framebuffer(Framebuffer&& other) noexcept
     : fbo_(std::exchange(other.fbo_, 0)),
       texture_(std::exchange(other.texture_, 0)),
+      depth_(std::exchange(other.depth_, 0)),
       width_(std::exchange(other.width_, 0)),
       height_(std::exchange(other.height_, 0)) {}
 
@@ -21,6 +22,7 @@ Framebuffer& Framebuffer::operator=(Framebuffer&& other) noexcept {
     release();
     fbo_ = std::exchange(other.fbo_, 0);
     texture_ = std::exchange(other.texture_, 0);
+    depth_ = std::exchange(other.depth_, 0);
     width_ = std::exchange(other.width_, 0);
     height_ = std::exchange(other.height_, 0);
   }
@@ -30,15 +32,16 @@ Framebuffer& Framebuffer::operator=(Framebuffer&& other) noexcept {
 void Framebuffer::release() {
   if (fbo_ != 0) glDeleteFramebuffers(1, &fbo_);
   if (texture_ != 0) glDeleteTextures(1, &texture_);
-  fbo_ = texture_ = 0;
+  if (depth_ != 0) glDeleteRenderbuffers(1, &depth_);
+  fbo_ = texture_ = depth_ = 0;
   width_ = height_ = 0;
 }
 
-void Framebuffer::resize(int width, int height) {
+void Framebuffer::resize(int width, int height, bool with_depth) {
   if (width <= 0 || height <= 0)
     throw std::runtime_error("framebuffer size must be positive, got " + std::to_string(width) + "x" +
                              std::to_string(height));
-  if (fbo_ != 0 && width == width_ && height == height_) return;
+  if (fbo_ != 0 && width == width_ && height == height_ && with_depth == (depth_ != 0)) return;
 
   GLint previous_texture = 0;
   glGetIntegerv(GL_TEXTURE_BINDING_2D, &previous_texture);
@@ -56,6 +59,17 @@ void Framebuffer::resize(int width, int height) {
   if (fbo_ == 0) glGenFramebuffers(1, &fbo_);
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
   glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, texture_, 0);
+  if (with_depth) {
+    if (depth_ == 0) glGenRenderbuffers(1, &depth_);
+    glBindRenderbuffer(GL_RENDERBUFFER, depth_);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, width, height);
+    glBindRenderbuffer(GL_RENDERBUFFER, 0);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_);
+  } else if (depth_ != 0) {
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, 0);
+    glDeleteRenderbuffers(1, &depth_);
+    depth_ = 0;
+  }
   const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
   if (status != GL_FRAMEBUFFER_COMPLETE) {
     release();

@@ -20,7 +20,8 @@ public:
 
   // (Re)allocates the colour buffer when the size changes; a no-op otherwise. Throws
   // std::runtime_error when the framebuffer is incomplete or the size is not positive.
-  void resize(int width, int height);
+  // With `with_depth`, a 24-bit depth renderbuffer is attached too (the 3-D view needs one).
+  void resize(int width, int height, bool with_depth = false);
 
   // Binds it for drawing and sets the viewport to cover it.
   void bind() const;
@@ -37,6 +38,7 @@ private:
   void release();
   GLuint fbo_ = 0;
   GLuint texture_ = 0;
+  GLuint depth_ = 0;
   int width_ = 0;
   int height_ = 0;
 };

@@ -1,10 +1,18 @@
 #pragma once
 
+#include <cstdint>
+
+#include <imgui.h>
 #include <opencv2/core/mat.hpp>
 
 #include "ui/gl/gl.hpp"
 
 namespace nirslam::ui::gl {
+
+// A GL texture name as ImGui's renderer backend takes it.
+inline ImTextureID texture_id(GLuint texture) {
+  return reinterpret_cast<ImTextureID>(static_cast<std::uintptr_t>(texture));
+}
 
 // A single-channel texture holding a grey frame exactly: CV_8UC1 as GL_R8, CV_16UC1 as GL_R16
 // (both normalised, so a shader reads code / 255 or code / 65535 and rescales by the frame's bit

@@ -22,10 +22,6 @@ void set_colour_uniform(GLint location, ImU32 colour) {
   glUniform3f(location, c.x, c.y, c.z);
 }
 
-ImTextureID texture_id(GLuint texture) {
-  return reinterpret_cast<ImTextureID>(static_cast<std::uintptr_t>(texture));
-}
-
 std::uint32_t pixel_code(const cv::Mat& image, int x, int y) {
   return image.type() == CV_16UC1 ? image.at<std::uint16_t>(y, x) : image.at<std::uint8_t>(y, x);
 }
@@ -98,7 +94,7 @@ void FeedPanel::draw(const Snapshot& snapshot) {
   handle_input(*frame, hovered, active);
   update_geometry(*frame);
   render(*frame);
-  draw->AddImage(texture_id(target_.texture()), view_.min, view_.max, ImVec2(0.0f, 1.0f), ImVec2(1.0f, 0.0f));
+  draw->AddImage(gl::texture_id(target_.texture()), view_.min, view_.max, ImVec2(0.0f, 1.0f), ImVec2(1.0f, 0.0f));
   draw->PushClipRect(view_.min, view_.max, true);
   draw->AddRect(ImVec2(image_.min.x - 1.0f, image_.min.y - 1.0f), ImVec2(image_.max.x + 1.0f, image_.max.y + 1.0f),
                 colours::border);

@@ -12,6 +12,8 @@
 #include "nirslam/quality/frame_metrics.hpp"
 #include "nirslam/quality/image_quality.hpp"
 #include "nirslam/sources/source.hpp"
+#include "nirslam/worker/photometric_view.hpp"
+#include "nirslam/worker/trajectory_view.hpp"
 
 namespace nirslam {
 
@@ -32,6 +34,9 @@ struct QualitySample {
 struct StageTimings {
   double read_ms = 0.0;     // pulling the frame from the source (decode included)
   double quality_ms = 0.0;  // every frame metric: histogram pass, gradient energy, FAST corners
+  double photometric_ms = 0.0;  // KLT tracks, exposure estimate, correction G(I)/V
+  double odometry_ms = 0.0;     // tracking, and on keyframes the window optimisation
+  double mapping_ms = 0.0;      // of odometry_ms: window optimisation and point activation
   double total_ms = 0.0;
 };
 
@@ -57,6 +62,14 @@ struct Snapshot {
   // The power sweep wizard, the sweeps and the power recommendation. Shared between snapshots
   // until it changes; never null in snapshots the worker publishes.
   std::shared_ptr<const IlluminationStatus> illumination;
+  std::string pipeline_mode;   // "quality", "odometry", "calibrated", ... (PipelineMode)
+  // The frame as the odometry saw it: G(I)/V, CV_32FC1 on the 0..255 scale, when the mode corrects
+  // frames; empty otherwise. Shares the pipeline's buffer, never written after publishing.
+  cv::Mat corrected_image;
+  // Photometric calibration and odometry state, shared between snapshots until they change;
+  // never null in snapshots the worker publishes.
+  std::shared_ptr<const PhotometricView> photometric;
+  std::shared_ptr<const TrajectoryView> trajectory;
   std::string message;              // last status or error, for the operator
 };
 

@@ -1,0 +1,44 @@
+#pragma once
+// What the UI and the headless writers see of the online photometric calibration: the current
+// response and vignette, the exposure history, the convergence state and, when the source knows
+// them (the simulator), the true curves. Published inside snapshots, shared between them until
+// the estimate changes, never modified after publishing.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "nirslam/photometric/response_model.hpp"
+
+namespace nirslam {
+
+struct ExposurePoint {
+  std::int64_t frame_index = 0;
+  double timestamp_s = 0.0;
+  float estimated = 0.0f;        // ms x gain (or relative, see PhotometricView::exposure_unit); NaN when none
+  float reference = 0.0f;        // as the source reported it (ms x gain), or its ground truth; NaN when unknown
+  bool keyframe = false;         // handed to the back end
+};
+
+struct PhotometricView {
+  bool enabled = false;          // the pipeline mode runs the calibration at all
+  ResponseModel response;        // current estimate
+  VignetteModel vignette;
+  int model_version = 0;         // increments with every back-end update
+  bool converged = false;
+  int iterations = 0;
+  double cost = 0.0;
+  int keyframes = 0;
+  int points = 0;
+  std::string ambiguity;         // how gamma and scale were fixed, e.g. "known exposures: ..."
+  std::string status;            // convergence status, or why there is no estimate yet
+  std::string exposure_status;   // the last frame's exposure estimate: "estimated", or why not
+  std::string exposure_unit = "ms";  // "ms" when anchored to reported exposures, else "relative"
+  // Ground truth, when the source has it (simulator), for the overlays.
+  std::optional<ResponseModel> true_response;
+  std::optional<VignetteModel> true_vignette;
+  std::vector<ExposurePoint> exposures;  // oldest first, bounded length
+};
+
+}  // namespace nirslam

@@ -1,0 +1,138 @@
+// The photometric panel rendered headless from hand-made estimates: the response, inverse response
+// and vignette curves sit where the models put them, the truth is overlaid, the vignette map is
+// darker at the corners, and the exposure history is drawn.
+
+#include <cmath>
+#include <memory>
+
+#include <gtest/gtest.h>
+
+#include "ui/panels/photometric_panel.hpp"
+#include "ui/ui_test_support.hpp"
+
+namespace nirslam::ui {
+namespace {
+
+using testing::full_window;
+using testing::near;
+using testing::pixel;
+
+std::shared_ptr<PhotometricView> estimate_view() {
+  auto view = std::make_shared<PhotometricView>();
+  view->enabled = true;
+  view->response = ResponseModel::from_preset(ResponsePreset::Gamma);
+  view->vignette = VignetteModel{Eigen::Vector3d(-0.35, 0.10, -0.05)};
+  view->true_response = ResponseModel::from_preset(ResponsePreset::Linear);
+  view->true_vignette = VignetteModel{Eigen::Vector3d(-0.2, 0.0, 0.0)};
+  view->model_version = 3;
+  view->converged = true;
+  view->keyframes = 12;
+  view->points = 800;
+  view->iterations = 9;
+  view->ambiguity = "known exposures (reported by the source)";
+  for (int i = 0; i < 200; ++i) {
+    ExposurePoint p;
+    p.frame_index = i;
+    p.timestamp_s = i / 30.0;
+    p.estimated = static_cast<float>(5.0 + 3.0 * std::sin(i / 20.0));
+    p.reference = static_cast<float>(5.0 + 3.0 * std::sin(i / 20.0) + 0.2);
+    p.keyframe = i % 15 == 0;
+    view->exposures.push_back(p);
+  }
+  return view;
+}
+
+class PhotometricPanelTest : public testing::HeadlessGlTest {
+protected:
+  void SetUp() override {
+    HeadlessGlTest::SetUp();
+    if (IsSkipped() || HasFatalFailure()) return;
+    ui_ = std::make_unique<OffscreenUi>(1100, 360);
+  }
+  void TearDown() override {
+    ui_.reset();
+    HeadlessGlTest::TearDown();
+  }
+  cv::Mat render(PhotometricPanel& panel, const Snapshot& snapshot) {
+    for (int i = 0; i < 2; ++i) ui_->frame([&] { full_window([&] { panel.draw(snapshot); }); });
+    cv::Mat shot = ui_->read_rgba();
+    testing::save_if_requested(shot, ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    return shot;
+  }
+  // Whether `colour` appears within `radius` pixels of the data point (x, y) of a plot area.
+  static bool colour_at(const cv::Mat& shot, const ScreenRect& area, double u, double v, ImU32 colour, int radius = 3) {
+    const int cx = static_cast<int>(area.min.x + u * area.width());
+    const int cy = static_cast<int>(area.max.y - v * area.height());
+    for (int dy = -radius; dy <= radius; ++dy)
+      for (int dx = -radius; dx <= radius; ++dx)
+        if (near(pixel(shot, cx + dx, cy + dy), colour, 30)) return true;
+    return false;
+  }
+  std::unique_ptr<OffscreenUi> ui_;
+};
+
+TEST_F(PhotometricPanelTest, CurvesSitWhereTheModelsPutThem) {
+  Snapshot snapshot;
+  const auto view = estimate_view();
+  snapshot.photometric = view;
+  PhotometricPanel panel;
+  const cv::Mat shot = render(panel, snapshot);
+  const ScreenRect& response = panel.response_plot_rect();
+  const ScreenRect& inverse = panel.inverse_plot_rect();
+  const ScreenRect& vignette = panel.vignette_plot_rect();
+  ASSERT_FALSE(response.empty());
+  ASSERT_FALSE(inverse.empty());
+  ASSERT_FALSE(vignette.empty());
+  // Response: estimate (gamma) above the diagonal, truth (linear) on it, at X = 0.3.
+  EXPECT_TRUE(colour_at(shot, response, 0.3, view->response(0.3), colours::estimate));
+  EXPECT_TRUE(colour_at(shot, response, 0.3, 0.3, colours::ground_truth));
+  EXPECT_FALSE(colour_at(shot, response, 0.3, 0.3, colours::estimate, 1));
+  // Inverse response: G(y) below the diagonal for a gamma curve.
+  EXPECT_TRUE(colour_at(shot, inverse, 0.5, view->response.inverse(0.5), colours::estimate));
+  // Vignette at r = 0.8, on the plot's axis range (its lower end is the lowest V rounded down).
+  const double lo = std::floor(std::min((*view->true_vignette)(1.0), view->vignette(1.0)) * 10.0 - 0.5) / 10.0;
+  const double hi = 1.02;
+  EXPECT_TRUE(colour_at(shot, vignette, 0.8, (view->vignette(0.8) - lo) / (hi - lo), colours::estimate));
+  EXPECT_TRUE(colour_at(shot, vignette, 0.8, ((*view->true_vignette)(0.8) - lo) / (hi - lo), colours::ground_truth));
+}
+
+TEST_F(PhotometricPanelTest, VignetteMapIsDarkerAtTheCorners) {
+  Snapshot snapshot;
+  snapshot.photometric = estimate_view();
+  PhotometricPanel panel;
+  const cv::Mat shot = render(panel, snapshot);
+  const ScreenRect& map = panel.vignette_map_rect();
+  ASSERT_FALSE(map.empty());
+  const auto brightness = [&](float x, float y) {
+    const testing::Rgb c = pixel(shot, static_cast<int>(x), static_cast<int>(y));
+    return c.r + c.g + c.b;
+  };
+  const int centre = brightness(map.centre().x, map.centre().y);
+  const int corner = brightness(map.max.x - 3.0f, map.min.y + 3.0f);
+  EXPECT_GT(centre, corner + 150);
+}
+
+TEST_F(PhotometricPanelTest, ExposureHistoryAndKeyframesAreDrawn) {
+  Snapshot snapshot;
+  snapshot.photometric = estimate_view();
+  PhotometricPanel panel;
+  const cv::Mat shot = render(panel, snapshot);
+  const ScreenRect& plot = panel.exposure_plot_rect();
+  ASSERT_FALSE(plot.empty());
+  EXPECT_GT(testing::count_colour(shot, plot, colours::estimate, 20), 200);
+  EXPECT_GT(testing::count_colour(shot, plot, colours::ground_truth, 20), 100);
+  EXPECT_GT(testing::count_colour(shot, plot, colours::keyframe_mark, 20), 10);
+}
+
+TEST_F(PhotometricPanelTest, SaysSoWhenCalibrationIsOff) {
+  Snapshot snapshot;
+  snapshot.photometric = std::make_shared<PhotometricView>();  // enabled = false
+  PhotometricPanel panel;
+  const cv::Mat shot = render(panel, snapshot);
+  EXPECT_TRUE(panel.response_plot_rect().empty());
+  ScreenRect middle{ImVec2(0.0f, 150.0f), ImVec2(1100.0f, 210.0f)};
+  EXPECT_GT(testing::grey_stddev(shot, middle), 5.0);
+}
+
+}  // namespace
+}  // namespace nirslam::ui

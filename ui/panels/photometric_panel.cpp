@@ -1,0 +1,260 @@
+#include "ui/panels/photometric_panel.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <fmt/format.h>
+#include <imgui.h>
+
+#include "ui/colour_maps.hpp"
+#include "ui/theme.hpp"
+
+namespace nirslam::ui {
+namespace {
+
+void legend(bool with_truth) {
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  const auto swatch = [&](ImU32 colour, const char* text) {
+    const ImVec2 p = ImGui::GetCursorScreenPos();
+    const float y = p.y + 0.5f * ImGui::GetTextLineHeight();
+    draw->AddLine(ImVec2(p.x, y), ImVec2(p.x + 16.0f, y), colour, 2.5f);
+    ImGui::Dummy(ImVec2(20.0f, ImGui::GetTextLineHeight()));
+    ImGui::SameLine(0.0f, 2.0f);
+    ImGui::TextColored(to_vec4(colours::text_dim), "%s", text);
+  };
+  swatch(colours::estimate, "estimate");
+  if (with_truth) {
+    ImGui::SameLine(0.0f, 12.0f);
+    swatch(colours::ground_truth, "ground truth");
+  }
+}
+
+// Ticks at 0, 1/4, ... of a range, so every small plot reads the same way.
+std::vector<double> quarter_ticks(double lo, double hi) {
+  std::vector<double> ticks;
+  for (int i = 0; i <= 4; ++i) ticks.push_back(lo + (hi - lo) * i / 4.0);
+  return ticks;
+}
+
+}  // namespace
+
+void PhotometricPanel::update_curves(const PhotometricView& view) {
+  if (cached_for_ == &view && cached_version_ == view.model_version) return;
+  cached_for_ = &view;
+  cached_version_ = view.model_version;
+  x_unit_.resize(kCurveSamples);
+  x_grey_.resize(kCurveSamples);
+  response_.resize(kCurveSamples);
+  inverse_.resize(kCurveSamples);
+  vignette_.resize(kCurveSamples);
+  response_true_.clear();
+  inverse_true_.clear();
+  vignette_true_.clear();
+  for (int i = 0; i < kCurveSamples; ++i) {
+    const double t = static_cast<double>(i) / (kCurveSamples - 1);
+    x_unit_[i] = t;
+    x_grey_[i] = 255.0 * t;
+    response_[i] = 255.0 * view.response(t);
+    inverse_[i] = 255.0 * view.response.inverse(t);
+    vignette_[i] = view.vignette(t);
+    if (view.true_response) {
+      response_true_.push_back(255.0 * (*view.true_response)(t));
+      inverse_true_.push_back(255.0 * view.true_response->inverse(t));
+    }
+    if (view.true_vignette) vignette_true_.push_back((*view.true_vignette)(t));
+  }
+}
+
+void PhotometricPanel::draw(const Snapshot& snapshot) {
+  response_plot_ = inverse_plot_ = vignette_plot_ = vignette_map_ = exposure_plot_ = {};
+  const PhotometricView* view = snapshot.photometric.get();
+  if (view == nullptr || !view->enabled) {
+    const ImVec2 avail = ImGui::GetContentRegionAvail();
+    const ImVec2 origin = ImGui::GetCursorScreenPos();
+    const char* line1 = "Photometric calibration off";
+    const char* line2 = "Choose a pipeline mode with online calibration to estimate response, vignette and exposure";
+    const ImVec2 s1 = ImGui::CalcTextSize(line1);
+    const ImVec2 s2 = ImGui::CalcTextSize(line2);
+    ImDrawList* draw = ImGui::GetWindowDrawList();
+    const ImVec2 c(origin.x + 0.5f * avail.x, origin.y + 0.5f * avail.y);
+    draw->AddText(ImVec2(c.x - 0.5f * s1.x, c.y - s1.y - 2.0f), colours::text, line1);
+    draw->AddText(ImVec2(c.x - 0.5f * s2.x, c.y + 2.0f), colours::text_dim, line2);
+    return;
+  }
+  update_curves(*view);
+  draw_status(*view);
+  const float avail = ImGui::GetContentRegionAvail().y;
+  const float curves = std::floor(0.56f * avail);
+  draw_curves(*view, curves);
+  draw_exposure(*view, ImGui::GetContentRegionAvail().y);
+}
+
+void PhotometricPanel::draw_status(const PhotometricView& view) {
+  const bool has_estimate = view.model_version > 0;
+  const ImU32 colour = view.converged ? colours::state_running : has_estimate ? colours::state_paused : colours::state_idle;
+  badge(view.converged ? "converged" : has_estimate ? "optimising" : "waiting", colour);
+  ImGui::SameLine();
+  if (has_estimate)
+    ImGui::Text("model v%d · %d keyframes · %d points · %d iterations", view.model_version, view.keyframes, view.points,
+                view.iterations);
+  else
+    ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.status.empty() ? "no back-end estimate yet" : view.status.c_str());
+  ImGui::SameLine(0.0f, 16.0f);
+  ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.ambiguity.empty() ? "" : view.ambiguity.c_str());
+  if (!view.ambiguity.empty() && ImGui::IsItemHovered())
+    ImGui::SetTooltip("The response is only known up to f^gamma and a scale: this is how the estimate fixes them");
+  ImGui::SameLine(0.0f, 16.0f);
+  legend(view.true_response.has_value() || view.true_vignette.has_value());
+}
+
+void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
+  const float spacing = ImGui::GetStyle().ItemSpacing.x;
+  const float width = ImGui::GetContentRegionAvail().x;
+  const float map_width = std::min(std::floor(0.22f * width), std::floor((height - ImGui::GetTextLineHeightWithSpacing()) * 4.0f / 3.0f));
+  const float plot_width = std::floor((width - map_width - 3.0f * spacing) / 3.0f);
+  const float title = ImGui::GetTextLineHeightWithSpacing();
+  const float plot_height = std::max(40.0f, height - title);
+
+  const auto cell = [&](const char* caption, auto body) {
+    ImGui::BeginGroup();
+    ImGui::TextColored(to_vec4(colours::text_dim), "%s", caption);
+    body();
+    ImGui::EndGroup();
+  };
+
+  cell("Response f", [&] {
+    PlotAxes axes;
+    axes.y_max = 255.0;
+    axes.y_ticks = quarter_ticks(0.0, 255.0);
+    axes.y_label_width = ImGui::CalcTextSize("255").x;
+    axes.x_caption = "irradiance (0..1)";
+    std::array<PlotSeries, 2> series{PlotSeries{response_true_.empty() ? std::span<const double>() : x_unit_, response_true_,
+                                                colours::ground_truth, 1.5f},
+                                     PlotSeries{x_unit_, response_, colours::estimate, 2.0f}};
+    response_plot_ = draw_plot("##response", ImVec2(plot_width, plot_height), axes, series).area;
+  });
+  ImGui::SameLine();
+  cell("Inverse response G (pcalib)", [&] {
+    PlotAxes axes;
+    axes.x_max = 255.0;
+    axes.y_max = 255.0;
+    axes.y_ticks = quarter_ticks(0.0, 255.0);
+    axes.y_label_width = ImGui::CalcTextSize("255").x;
+    axes.x_caption = "grey level";
+    std::array<PlotSeries, 2> series{PlotSeries{inverse_true_.empty() ? std::span<const double>() : x_grey_, inverse_true_,
+                                                colours::ground_truth, 1.5f},
+                                     PlotSeries{x_grey_, inverse_, colours::estimate, 2.0f}};
+    inverse_plot_ = draw_plot("##inverse", ImVec2(plot_width, plot_height), axes, series).area;
+  });
+  ImGui::SameLine();
+  cell("Vignette V(r)", [&] {
+    double lo = *std::min_element(vignette_.begin(), vignette_.end());
+    for (double v : vignette_true_) lo = std::min(lo, v);
+    lo = std::max(0.0, std::floor(lo * 10.0 - 0.5) / 10.0);
+    PlotAxes axes;
+    axes.y_min = lo;
+    axes.y_max = 1.0 + 0.02;
+    axes.y_ticks = quarter_ticks(lo, 1.0);
+    axes.y_decimals = 2;
+    axes.x_caption = "radius (corner = 1)";
+    std::array<PlotSeries, 2> series{PlotSeries{vignette_true_.empty() ? std::span<const double>() : x_unit_, vignette_true_,
+                                                colours::ground_truth, 1.5f},
+                                     PlotSeries{x_unit_, vignette_, colours::estimate, 2.0f}};
+    vignette_plot_ = draw_plot("##vignette", ImVec2(plot_width, plot_height), axes, series).area;
+  });
+  ImGui::SameLine();
+  cell("Vignette map", [&] { draw_vignette_map(view, ImVec2(map_width, plot_height)); });
+}
+
+void PhotometricPanel::draw_vignette_map(const PhotometricView& view, ImVec2 size) {
+  const ImVec2 origin = ImGui::GetCursorScreenPos();
+  ImGui::Dummy(size);
+  // 4:3 map centred in the cell, over the image as the camera sees it.
+  const float w = std::min(size.x, std::floor(size.y * 4.0f / 3.0f));
+  const float h = std::floor(w * 3.0f / 4.0f);
+  vignette_map_.min = ImVec2(origin.x + std::floor(0.5f * (size.x - w)), origin.y);
+  vignette_map_.max = ImVec2(vignette_map_.min.x + w, vignette_map_.min.y + h);
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  constexpr int kCols = 32;
+  constexpr int kRows = 24;
+  const double corner = view.vignette(1.0);
+  const double lo = std::min(corner, 0.999);
+  for (int row = 0; row < kRows; ++row)
+    for (int col = 0; col < kCols; ++col) {
+      const double r = VignetteModel::radius(col + 0.5, row + 0.5, kCols + 1, kRows + 1);
+      const double v = view.vignette(r);
+      const float t = static_cast<float>((v - lo) / (1.0 - lo));
+      const ImVec2 a(vignette_map_.min.x + w * col / kCols, vignette_map_.min.y + h * row / kRows);
+      const ImVec2 b(vignette_map_.min.x + w * (col + 1) / kCols + 0.5f, vignette_map_.min.y + h * (row + 1) / kRows + 0.5f);
+      draw->AddRectFilled(a, b, heat_colour(0.15f + 0.85f * t));
+    }
+  draw->AddRect(vignette_map_.min, vignette_map_.max, colours::border);
+  const std::string label = fmt::format("corners {:.2f}", corner);
+  const ImVec2 text = ImGui::CalcTextSize(label.c_str());
+  if (text.x + 8.0f < w) {
+    const ImVec2 p(vignette_map_.min.x + 4.0f, vignette_map_.max.y - text.y - 3.0f);
+    draw->AddRectFilled(ImVec2(p.x - 2.0f, p.y - 1.0f), ImVec2(p.x + text.x + 2.0f, p.y + text.y + 1.0f), colours::overlay_bg);
+    draw->AddText(p, colours::text, label.c_str());
+  }
+}
+
+void PhotometricPanel::draw_exposure(const PhotometricView& view, float height) {
+  frames_.clear();
+  exposure_.clear();
+  reference_.clear();
+  reference_frames_.clear();
+  double lo = std::numeric_limits<double>::infinity();
+  double hi = -lo;
+  for (const ExposurePoint& p : view.exposures) {
+    if (std::isfinite(p.estimated)) {
+      frames_.push_back(static_cast<double>(p.frame_index));
+      exposure_.push_back(p.estimated);
+      lo = std::min(lo, static_cast<double>(p.estimated));
+      hi = std::max(hi, static_cast<double>(p.estimated));
+    }
+    if (std::isfinite(p.reference)) {
+      reference_frames_.push_back(static_cast<double>(p.frame_index));
+      reference_.push_back(p.reference);
+      lo = std::min(lo, static_cast<double>(p.reference));
+      hi = std::max(hi, static_cast<double>(p.reference));
+    }
+  }
+  const std::string caption = fmt::format("Exposure ({}){}", view.exposure_unit,
+                                          view.exposure_status.empty() ? "" : " · last frame: " + view.exposure_status);
+  ImGui::TextColored(to_vec4(colours::text_dim), "%s", caption.c_str());
+  height -= ImGui::GetTextLineHeightWithSpacing();
+  if (!std::isfinite(lo)) {
+    lo = 0.0;
+    hi = 1.0;
+  }
+  const double margin = std::max(0.05 * (hi - lo), 1e-3 * std::abs(hi));
+  PlotAxes axes;
+  axes.y_min = std::max(0.0, lo - margin);
+  axes.y_max = hi + margin;
+  axes.y_ticks = quarter_ticks(axes.y_min, axes.y_max);
+  axes.y_decimals = axes.y_max < 1.0 ? 3 : axes.y_max < 10.0 ? 2 : 1;
+  const double first = view.exposures.empty() ? 0.0 : static_cast<double>(view.exposures.front().frame_index);
+  const double last = view.exposures.empty() ? 1.0 : static_cast<double>(view.exposures.back().frame_index);
+  axes.x_min = first;
+  axes.x_max = std::max(last, first + 1.0);
+  axes.x_caption = "frame";
+  std::array<PlotSeries, 2> series{PlotSeries{reference_frames_, reference_, colours::ground_truth, 1.5f},
+                                   PlotSeries{frames_, exposure_, colours::estimate, 2.0f}};
+  const float width = ImGui::GetContentRegionAvail().x;
+  exposure_plot_ = draw_plot("##exposure", ImVec2(width, std::max(50.0f, height - 2.0f)), axes, series).area;
+  // Keyframes: ticks along the bottom of the plot.
+  if (!exposure_plot_.empty()) {
+    ImDrawList* draw = ImGui::GetWindowDrawList();
+    const double span = axes.x_max - axes.x_min;
+    for (const ExposurePoint& p : view.exposures) {
+      if (!p.keyframe) continue;
+      const float x = exposure_plot_.min.x + static_cast<float>((p.frame_index - axes.x_min) / span) * exposure_plot_.width();
+      draw->AddLine(ImVec2(x, exposure_plot_.max.y - 6.0f), ImVec2(x, exposure_plot_.max.y - 1.0f), colours::keyframe_mark, 1.5f);
+    }
+  }
+}
+
+}  // namespace nirslam::ui

@@ -1,0 +1,91 @@
+#pragma once
+
+// Keyframe selection for the photometric back end (issue 6, after Bergmann et al., "Online
+// photometric calibration of auto exposure video"). The back end fits the response, the vignette
+// and the keyframes' exposures to the radiance of tracked points; a frame is worth adding when it
+// sees the tracked points under a new exposure (response information), at new image positions
+// (vignette information, via track turnover / motion), or when enough time has passed. Frames the
+// front end could not use (black, saturated, too few tracks) are never keyframes.
+//
+// A keyframe keeps, per track, the grey values of kBackendPixels pixels of the tracked 9x9 patch
+// (a 3 x 3 grid with a 3 px pitch) and their squared image gradient, for the gradient weight
+// w = mu / (mu + |grad I|^2) of the paper's Eq. 2-5. Grey values are in 0..255 units (16-bit
+// frames scaled), so G = f^-1 applies as a 256-level table does; clipped pixels are stored as -1.
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nirslam/photometric/exposure_estimator.hpp"
+#include "nirslam/photometric/photometric_tracker.hpp"
+
+namespace nirslam {
+
+inline constexpr int kBackendPixels = 9;
+inline constexpr int kBackendPixelPitch = 3;
+// Offset (dx, dy) in pixels of back-end pixel k from the track position.
+Eigen::Vector2d backend_pixel_offset(int k);
+
+struct KeyframeObservation {
+  std::int64_t track_id = 0;
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();  // track centre, pixels
+  std::array<float, kBackendPixels> grey{};            // 0..255, -1 where clipped
+  std::array<float, kBackendPixels> gradient_sq{};     // |grad I|^2, grey levels^2 per px^2
+};
+
+struct PhotometricKeyframe {
+  std::int64_t frame_index = 0;
+  double timestamp_s = 0.0;
+  int width = 0;
+  int height = 0;
+  double exposure = 1.0;          // the reported exposure x gain when known, else the front end's estimate
+  bool exposure_known = false;    // reported by the source (and the back end is told to trust it)
+  std::vector<KeyframeObservation> observations;
+};
+
+// The keyframe's back-end data from a tracked frame and its exposure estimate. `exposure` is what
+// the keyframe starts with (reported or estimated). black_level / saturation_level: fractions of
+// full scale beyond which a pixel counts as clipped.
+PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, double timestamp_s, double exposure,
+                                              bool exposure_known, double black_level = 0.03,
+                                              double saturation_level = 0.97);
+
+struct KeyframeSelectionOptions {
+  double min_interval_s = 0.05;             // at most 20 keyframes a second
+  double max_interval_s = 1.0;              // a good frame becomes a keyframe at least this often
+  double min_log_exposure_change = 0.04;    // |log(e / e_last keyframe)|: about 4 %
+  double min_track_turnover = 0.25;         // fraction of the last keyframe's tracks gone or new
+  double min_mean_motion_px = 20.0;         // mean shift of the shared tracks since the last keyframe
+  int min_tracks = 20;                      // usable tracks for a keyframe
+};
+
+struct KeyframeDecision {
+  bool keyframe = false;
+  std::string reason;  // why (or why not)
+};
+
+class KeyframeSelector {
+public:
+  explicit KeyframeSelector(KeyframeSelectionOptions options = {}) : options_(options) {}
+
+  // Decides on a frame after the front end processed it; a frame it accepts becomes the reference
+  // of the next decisions.
+  KeyframeDecision consider(const TrackedFrame& tracked, const ExposureEstimate& estimate, double timestamp_s);
+  void reset() { last_.reset(); }
+  const KeyframeSelectionOptions& options() const { return options_; }
+
+private:
+  struct Last {
+    double timestamp_s = 0.0;
+    double log_exposure = 0.0;
+    std::vector<std::pair<std::int64_t, Eigen::Vector2d>> tracks;  // sorted by id
+  };
+  KeyframeSelectionOptions options_;
+  std::optional<Last> last_;
+};
+
+}  // namespace nirslam

@@ -1,0 +1,163 @@
+#pragma once
+
+// Online photometric calibration (issue 6): the front end (gain-robust KLT, per-frame exposure,
+// corrected image) on the caller's thread, the back end (response, vignette, keyframe exposures;
+// photometric_backend.hpp) on a background thread over keyframes.
+//
+// Threads. process() runs on one caller thread (the worker's pipeline thread). Keyframes go to the
+// back end through a bounded queue: process() never waits for the back end; when the queue is
+// full the oldest keyframe is dropped and counted (keyframes_dropped()). The back end publishes
+// each new model as an immutable PhotometricEstimate (a shared_ptr swapped under a mutex that
+// guards only the pointer; libstdc++ 12's atomic<shared_ptr> trips ThreadSanitizer), which
+// estimate() returns from any thread; process() picks a new model version up at the start of the
+// next frame and hands it to the exposure estimator (which then restarts its anchor chain). reset()
+// and finish() are called on the caller's thread and wait for the back end.
+//
+// Ambiguity (DESIGN.md, "The photometric model"): how gamma and scale were fixed is reported in
+// every estimate:
+//  - KnownExposures: the source reports exposure time (x gain); the back end holds keyframe
+//    exposures at those values, so f, V and the radiances are determined. The per-frame exposures
+//    are still the front end's estimates, normalised to the reported value at the first frame.
+//  - PowerSweep: the response was calibrated before from an illuminator power sweep (radiance
+//    proportional to power; options.response_from_power_sweep) and is held; V and e estimated.
+//  - Normalisation: no reported exposure; the first good frame has exposure 1 (relative units),
+//    the back end holds the oldest keyframe of its window, and the gamma is pinned only by the
+//    response basis and the weak prior towards options.backend.initial_response.
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <thread>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "nirslam/image/frame.hpp"
+#include "nirslam/photometric/exposure_estimator.hpp"
+#include "nirslam/photometric/keyframe_selection.hpp"
+#include "nirslam/photometric/photometric_backend.hpp"
+#include "nirslam/photometric/photometric_tracker.hpp"
+#include "nirslam/photometric/response_model.hpp"
+
+namespace nirslam {
+
+enum class AmbiguityResolution { KnownExposures, PowerSweep, Normalisation };
+std::string_view to_string(AmbiguityResolution resolution);
+
+struct PhotometricEstimate {  // immutable once published
+  ResponseModel response;
+  VignetteModel vignette;
+  int model_version = 0;       // increments on each back-end update
+  bool converged = false;
+  int iterations = 0;
+  double cost = 0.0;           // weighted Huber cost per observation
+  double residual_rms = 0.0;   // grey levels, inliers
+  int keyframes = 0;
+  int points = 0;
+  std::int64_t keyframes_dropped = 0;  // by the bounded queue, so far
+  AmbiguityResolution ambiguity = AmbiguityResolution::Normalisation;
+  std::string ambiguity_detail;  // e.g. "exposure times reported by the source"
+  std::string status;            // human-readable convergence status / why nothing yet
+  double backend_ms = 0.0;       // wall time of the optimisation that produced this estimate
+  std::vector<std::pair<std::int64_t, double>> keyframe_exposures;  // frame index -> exposure (back end)
+};
+
+struct ExposureSample {
+  std::int64_t frame_index = 0;
+  double timestamp_s = 0.0;
+  std::optional<double> estimated;  // front end, ms x gain (or relative)
+  std::optional<double> reported;   // exposure_ms x gain from the source
+  ExposureStatus status = ExposureStatus::NoEstimateYet;
+};
+
+struct CorrectedFrame {
+  cv::Mat irradiance;              // CV_32FC1, G(I)/V on the 0..255 scale (the odometry's input)
+  std::optional<double> exposure;  // estimated exposure of this frame (ms x gain, or relative)
+  ExposureEstimate estimate;       // from ExposureEstimator
+  double front_end_ms = 0.0;       // tracking + exposure + correction time
+  bool keyframe = false;           // handed to the back end
+  int model_version = 0;           // of the model that corrected this frame
+};
+
+struct OnlineCalibrationOptions {
+  PhotometricTrackerOptions tracker;
+  ExposureEstimatorOptions exposure;
+  KeyframeSelectionOptions keyframes;
+  PhotometricBackendOptions backend;  // holds the initial response and vignette
+  bool background_thread = true;      // false: the back end runs inside process() (tests, batch)
+  bool use_reported_exposures = true; // KnownExposures when the source reports them
+  std::optional<ResponseModel> response_from_power_sweep;  // PowerSweep: held fixed
+  int queue_capacity = 8;             // keyframes waiting for the back end
+  int iterations_per_keyframe = 4;    // LM iterations per back-end update
+  int final_iterations = 60;          // finish(): over every stored keyframe
+  bool correct_images = true;         // compute CorrectedFrame::irradiance
+  bool run_backend = true;            // false: front end only, with the initial model held
+};
+
+class OnlinePhotometricCalibration {
+public:
+  explicit OnlinePhotometricCalibration(OnlineCalibrationOptions options = {});
+  ~OnlinePhotometricCalibration();  // joins the background thread
+  OnlinePhotometricCalibration(const OnlinePhotometricCalibration&) = delete;
+  OnlinePhotometricCalibration& operator=(const OnlinePhotometricCalibration&) = delete;
+
+  // Front end on the caller's thread; keyframes go to the back end (never blocks on it).
+  CorrectedFrame process(const Frame& frame);
+  // The latest estimate (never null; version 0 = the initial model), from any thread.
+  std::shared_ptr<const PhotometricEstimate> estimate() const;
+  // Per processed frame, caller's thread.
+  const std::vector<ExposureSample>& exposure_history() const { return history_; }
+  std::int64_t keyframes_dropped() const;
+  void reset();
+  // Batch mode: waits for the back end to process everything queued, then runs a final full
+  // optimisation over every stored keyframe and publishes it.
+  void finish();
+
+private:
+  struct Job {
+    enum Kind { Keyframe, Finish, Reset } kind = Keyframe;
+    PhotometricKeyframe keyframe;
+  };
+  void backend_loop();
+  void run_job(Job& job);
+  void publish(const BackendStep& step);
+  void submit_and_wait(Job::Kind kind);
+  std::shared_ptr<const PhotometricEstimate> initial_estimate() const;
+  void correct(const Frame& frame, const TrackedFrame& tracked, cv::Mat& out);
+
+  OnlineCalibrationOptions options_;
+
+  // Caller's thread.
+  PhotometricTracker tracker_;
+  ExposureEstimator exposure_;
+  KeyframeSelector selector_;
+  std::vector<ExposureSample> history_;
+  int applied_version_ = 0;
+  std::vector<float> inverse_lut_;   // G at 256 grey levels
+  cv::Mat inverse_vignette_;         // 1 / V, for the current size and model
+  int inverse_vignette_version_ = -1;
+
+  // Back-end thread (or the caller's when background_thread is false).
+  PhotometricBackend backend_;
+  int version_ = 0;
+  bool saw_known_exposure_ = false;
+  double last_backend_ms_ = 0.0;
+
+  // Shared.
+  mutable std::mutex queue_mutex_;
+  std::condition_variable queue_changed_;
+  std::deque<Job> queue_;
+  bool stopping_ = false;
+  bool busy_ = false;
+  std::int64_t dropped_ = 0;
+  mutable std::mutex estimate_mutex_;  // guards only the pointer
+  std::shared_ptr<const PhotometricEstimate> estimate_;
+  std::thread thread_;
+};
+
+}  // namespace nirslam

@@ -1,0 +1,159 @@
+#pragma once
+
+// The back end of the online photometric calibration (issue 6; Bergmann, Wang and Cremers,
+// "Online photometric calibration of auto exposure video"; the NIR paper's Eq. 2-2 .. 2-7):
+// response f (c1..c4, response_model.hpp), vignette V (v1..v3) and keyframe exposures e_i from the
+// grey values of tracked points over a window of keyframes.
+//
+// Point p is one pixel of a tracked patch (kBackendPixels per track, keyframe_selection.hpp),
+// observed with grey value I_i^p at radius r_i^p in keyframe i. Its residual (Eq. 2-2):
+//
+//   r_i^p = G(I_i^p) / (e_i V(r_i^p)) - L_p,       G = 255 f^-1(I / 255)  (grey-level units)
+//
+// G is f^-1 for the current c: with u = sqrt(X) solving f(u) = I/255, the implicit function
+// theorem gives dX/dc_k = -2u h_k(u) / f'(u) (h_k the basis, f' = df/du), which makes the
+// Jacobian in c analytic; dr/dv_j = -G r^(2j) / (e V^2) (j = 1..3), dr/de = -G / (e^2 V),
+// dr/dL = -1 (photometric_residual() below, tested against numeric differentiation).
+//
+// Weights: w = w_huber(s) * mu / (mu + |grad I|^2) (Eq. 2-5; the gradient term down-weights pixels
+// where a sub-pixel tracking error changes the grey value a lot) * (e_i V f'(X))^2, with
+// s = r e_i V f'(X) the residual carried back to grey levels (first order). The last factor is
+// ours: unweighted, the radiance-domain energy has a degenerate minimum: a response that is flat
+// over the observed grey values and jumps near white makes G(I), hence every residual, as small as
+// wanted (f(1) = 1 only pins G at 255), and making every e larger also shrinks every residual.
+// Weighted, the cost is the grey-level error of Bergmann et al., whose noise is about constant.
+// The factor is held during each Gauss-Newton linearisation (IRLS-like) and evaluated exactly in
+// the cost that decides whether a step is accepted.
+//
+// Solver: Levenberg-Marquardt over the globals x = (c1..c4, v1..v3, free e_i),
+//   (J^T W J + lambda diag(J^T W J)) dx = -J^T W r          (Eq. 2-3, 2-4)
+// with the radiances eliminated by the Schur complement (each L_p is a 1 x 1 block), and the
+// per-point update  dL_p = -(J_p^T W_p r_p + H_pg dx) / ((1 + lambda) J_p^T W_p J_p), which is the
+// paper's Eq. 2-7 plus the coupling term H_pg dx of the exact block elimination (the paper
+// alternates the two updates; eliminating converges in far fewer iterations because exposure and
+// radiance are strongly coupled). A step is accepted only if it lowers the cost and keeps f
+// strictly monotonic and V positive (the response stays invertible).
+//
+// Ambiguity: with exposures fixed (reported by the source), f, V and L are determined. Otherwise
+// the reference keyframe's exposure (the oldest in the window) is held, which fixes the scale,
+// and the gamma (f(X^g), e^g, V^g, L^g fit almost equally well) is pinned only by the response
+// basis and a weak prior pulling c towards the initial response. See online_calibration.hpp.
+
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nirslam/photometric/keyframe_selection.hpp"
+#include "nirslam/photometric/response_model.hpp"
+
+namespace nirslam {
+
+// Parameter layout of one residual's Jacobian: c1..c4, v1..v3, e, L.
+using PhotometricJacobian = Eigen::Matrix<double, 9, 1>;
+
+// f^-1 for one response: u = sqrt(X) with f(u) = y, from a table and two Newton steps (exact to
+// about 1e-12). Requires a strictly monotonic f.
+class InverseResponse {
+public:
+  explicit InverseResponse(const Eigen::Vector4d& c);
+  // u for y in [0, 1] (fraction of full scale).
+  double sqrt_irradiance(double y) const;
+  const Eigen::Vector4d& coefficients() const { return c_; }
+
+private:
+  Eigen::Vector4d c_;
+  std::vector<double> table_;  // u at y = i / (size - 1)
+};
+
+// r = G(grey) / (exposure V(radius)) - radiance, grey in 0..255. With a jacobian, d r / d(c, v, e, L).
+// Also returns G (grey-level units) through `irradiance`, and dI/dG = df/dX (grey levels per
+// grey level of irradiance) through `grey_per_irradiance`, when given.
+double photometric_residual(const InverseResponse& inverse, const Eigen::Vector3d& v, double exposure,
+                            double radiance, double grey, double radius, PhotometricJacobian* jacobian = nullptr,
+                            double* irradiance = nullptr, double* grey_per_irradiance = nullptr);
+
+struct PhotometricBackendOptions {
+  ResponseModel initial_response = ResponseModel::from_preset(ResponsePreset::Gamma);
+  VignetteModel initial_vignette;
+  bool estimate_response = true;
+  bool estimate_vignette = true;
+  bool trust_known_exposures = true;  // hold e_i of keyframes whose exposure the source reported
+  int max_keyframes = 40;             // the online window (oldest dropped)
+  int max_stored_keyframes = 400;     // kept for the final (batch) optimisation, evenly thinned
+  int max_points = 2400;              // radiance unknowns per optimisation (longest tracks first)
+  int min_keyframes = 4;
+  int min_points = 60;
+  int min_observations_per_point = 2;
+  double gradient_mu = 25.0;         // mu of Eq. 2-5, grey levels^2 per px^2
+  double huber_k = 2.0;               // Huber width in robust standard deviations of the residual
+  double coefficient_prior_weight = 1e-4;  // per observation, on (c - c_initial), in weighted-residual units
+  double min_exposure_ratio = 1.15;   // max/min exposure in the window below which f is not estimated
+  double min_radius_span = 0.1;       // V is estimated when min_points / 2 points span this range of radii
+  double convergence_relative = 1e-6; // stop when the cost drops by less than this fraction
+};
+
+struct BackendStep {
+  bool ok = false;           // a valid model (possibly unchanged)
+  bool updated = false;      // the model changed in this call
+  bool converged = false;
+  int iterations = 0;
+  double cost = 0.0;         // weighted Huber cost per observation, at the end
+  double residual_rms = 0.0; // of G(I) - e V L over the inliers, grey levels
+  int keyframes = 0;
+  int points = 0;
+  int observations = 0;
+  bool response_estimated = false;
+  bool vignette_estimated = false;
+  std::string status;        // what happened, and why not when nothing was estimated
+};
+
+class PhotometricBackend {
+public:
+  explicit PhotometricBackend(PhotometricBackendOptions options = {});
+
+  void add_keyframe(PhotometricKeyframe keyframe);
+  // LM iterations over the online window (the last max_keyframes keyframes), or over every stored
+  // keyframe when `all_stored` (batch: the final optimisation).
+  BackendStep optimise(int max_iterations, bool all_stored = false);
+
+  const ResponseModel& response() const { return response_; }
+  const VignetteModel& vignette() const { return vignette_; }
+  // Current exposure of each stored keyframe (frame index -> exposure).
+  std::vector<std::pair<std::int64_t, double>> keyframe_exposures() const;
+  std::size_t stored_keyframes() const { return keyframes_.size(); }
+  const PhotometricBackendOptions& options() const { return options_; }
+  void reset();
+
+private:
+  struct Point {
+    int begin = 0, end = 0;  // into observations_
+    double radiance = 0.0;
+  };
+  struct Observation {
+    int keyframe = 0;        // into the window's keyframe list
+    double grey = 0.0;       // 0..255
+    double radius = 0.0;
+    double gradient_weight = 1.0;
+  };
+  void build_problem(const std::vector<int>& window);
+  double evaluate_cost(const InverseResponse& inverse, const Eigen::Vector3d& v, const std::vector<double>& exposures,
+                       const std::vector<Point>& points, double delta) const;
+  void initialise_radiances(const InverseResponse& inverse, const Eigen::Vector3d& v,
+                            const std::vector<double>& exposures, std::vector<Point>& points) const;
+
+  PhotometricBackendOptions options_;
+  ResponseModel response_;
+  VignetteModel vignette_;
+  std::deque<PhotometricKeyframe> keyframes_;
+  std::int64_t added_ = 0;
+  // The problem of the current optimise() call (buffers reused between calls).
+  std::vector<int> window_;
+  std::vector<Point> points_;
+  std::vector<Observation> observations_;
+};
+
+}  // namespace nirslam

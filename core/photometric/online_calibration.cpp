@@ -1,0 +1,296 @@
+#include "nirslam/photometric/online_calibration.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+#include <opencv2/core.hpp>
+
+namespace nirslam {
+
+std::string_view to_string(AmbiguityResolution resolution) {
+  switch (resolution) {
+    case AmbiguityResolution::KnownExposures: return "known exposures";
+    case AmbiguityResolution::PowerSweep: return "power sweep";
+    case AmbiguityResolution::Normalisation: return "normalisation";
+  }
+  return "unknown";
+}
+
+namespace {
+
+PhotometricBackendOptions backend_options(const OnlineCalibrationOptions& options) {
+  PhotometricBackendOptions b = options.backend;
+  b.trust_known_exposures = options.use_reported_exposures;
+  if (options.response_from_power_sweep) {
+    b.initial_response = *options.response_from_power_sweep;
+    b.estimate_response = false;
+  }
+  return b;
+}
+
+double milliseconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+OnlinePhotometricCalibration::OnlinePhotometricCalibration(OnlineCalibrationOptions options)
+    : options_(std::move(options)),
+      tracker_(options_.tracker),
+      exposure_(backend_options(options_).initial_response, options_.backend.initial_vignette, options_.exposure),
+      selector_(options_.keyframes),
+      backend_(backend_options(options_)) {
+  if (options_.queue_capacity < 1 || options_.iterations_per_keyframe < 1 || options_.final_iterations < 1)
+    throw std::invalid_argument("online photometric calibration: bad options");
+  estimate_ = initial_estimate();
+  inverse_lut_.resize(256);
+  const std::vector<double> table = backend_.response().inverse_table(256);
+  for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
+  if (options_.background_thread && options_.run_backend) thread_ = std::thread([this] { backend_loop(); });
+}
+
+OnlinePhotometricCalibration::~OnlinePhotometricCalibration() {
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    stopping_ = true;
+  }
+  queue_changed_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+std::shared_ptr<const PhotometricEstimate> OnlinePhotometricCalibration::initial_estimate() const {
+  auto e = std::make_shared<PhotometricEstimate>();
+  e->response = backend_.response();
+  e->vignette = backend_.vignette();
+  if (options_.response_from_power_sweep) {
+    e->ambiguity = AmbiguityResolution::PowerSweep;
+    e->ambiguity_detail = "response calibrated from an illuminator power sweep and held";
+  } else {
+    e->ambiguity = AmbiguityResolution::Normalisation;
+    e->ambiguity_detail = "not yet decided (no keyframe yet)";
+  }
+  e->status = options_.run_backend ? "no keyframe yet: initial model" : "back end off: initial model held";
+  return e;
+}
+
+std::shared_ptr<const PhotometricEstimate> OnlinePhotometricCalibration::estimate() const {
+  std::lock_guard<std::mutex> lock(estimate_mutex_);
+  return estimate_;
+}
+
+std::int64_t OnlinePhotometricCalibration::keyframes_dropped() const {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  return dropped_;
+}
+
+void OnlinePhotometricCalibration::correct(const Frame& frame, const TrackedFrame& tracked, cv::Mat& out) {
+  const int version = applied_version_;
+  if (inverse_vignette_version_ != version || inverse_vignette_.cols != frame.width() ||
+      inverse_vignette_.rows != frame.height()) {
+    const VignetteModel vignette = estimate()->vignette;
+    inverse_vignette_ = vignette.render(frame.width(), frame.height());
+    cv::divide(1.0, inverse_vignette_, inverse_vignette_);
+    inverse_vignette_version_ = version;
+  }
+  out.create(frame.height(), frame.width(), CV_32FC1);
+  const float* lut = inverse_lut_.data();
+  for (int y = 0; y < frame.height(); ++y) {
+    const float* inv_v = inverse_vignette_.ptr<float>(y);
+    float* o = out.ptr<float>(y);
+    if (frame.image.type() == CV_8UC1) {
+      const std::uint8_t* in = frame.image.ptr<std::uint8_t>(y);
+      for (int x = 0; x < frame.width(); ++x) o[x] = lut[in[x]] * inv_v[x];
+    } else {
+      // Deeper frames: the tracker's intensity (fraction of full scale), G interpolated.
+      const float* in = tracked.intensity.ptr<float>(y);
+      for (int x = 0; x < frame.width(); ++x) {
+        const float position = std::min(std::max(in[x], 0.0f), 1.0f) * 255.0f;
+        const int i = std::min(static_cast<int>(position), 254);
+        const float t = position - static_cast<float>(i);
+        o[x] = ((1.0f - t) * lut[i] + t * lut[i + 1]) * inv_v[x];
+      }
+    }
+  }
+}
+
+CorrectedFrame OnlinePhotometricCalibration::process(const Frame& frame) {
+  const auto start = std::chrono::steady_clock::now();
+  // A newer model from the back end: hand it to the exposure estimator and the correction.
+  const std::shared_ptr<const PhotometricEstimate> model = estimate();
+  if (model->model_version != applied_version_) {
+    exposure_.set_model(model->response, model->vignette);
+    const std::vector<double> table = model->response.inverse_table(256);
+    for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
+    applied_version_ = model->model_version;
+  }
+
+  const TrackedFrame& tracked = tracker_.process(frame);
+  CorrectedFrame out;
+  out.estimate = exposure_.update(tracked);
+  out.exposure = out.estimate.exposure;
+  out.model_version = applied_version_;
+  std::optional<double> reported;
+  if (frame.exposure_ms && std::isfinite(*frame.exposure_ms) && *frame.exposure_ms > 0.0)
+    reported = *frame.exposure_ms * frame.gain.value_or(1.0);
+  history_.push_back(ExposureSample{frame.index, frame.timestamp_s, out.estimate.updated() ? out.exposure : std::nullopt,
+                                    reported, out.estimate.status});
+
+  if (options_.run_backend) {
+    const KeyframeDecision decision = selector_.consider(tracked, out.estimate, frame.timestamp_s);
+    if (decision.keyframe) {
+      out.keyframe = true;
+      const bool known = options_.use_reported_exposures && reported.has_value();
+      Job job;
+      job.kind = Job::Keyframe;
+      job.keyframe = make_photometric_keyframe(tracked, frame.timestamp_s, known ? *reported : *out.exposure, known,
+                                               options_.tracker.black_level, options_.tracker.saturation_level);
+      if (!options_.background_thread) {
+        run_job(job);
+      } else {
+        {
+          std::lock_guard<std::mutex> lock(queue_mutex_);
+          std::size_t waiting = 0;
+          for (const Job& j : queue_) waiting += j.kind == Job::Keyframe;
+          if (static_cast<int>(waiting) >= options_.queue_capacity) {
+            // The back end lags: drop the oldest waiting keyframe (never a command).
+            for (auto it = queue_.begin(); it != queue_.end(); ++it)
+              if (it->kind == Job::Keyframe) {
+                queue_.erase(it);
+                ++dropped_;
+                break;
+              }
+          }
+          queue_.push_back(std::move(job));
+        }
+        queue_changed_.notify_all();
+      }
+    }
+  }
+  if (options_.correct_images) correct(frame, tracked, out.irradiance);
+  out.front_end_ms = milliseconds_since(start);
+  return out;
+}
+
+void OnlinePhotometricCalibration::publish(const BackendStep& step) {
+  auto e = std::make_shared<PhotometricEstimate>();
+  const std::shared_ptr<const PhotometricEstimate> previous = estimate();
+  if (step.ok && step.updated) {
+    e->response = backend_.response();
+    e->vignette = backend_.vignette();
+    e->model_version = ++version_;
+  } else {
+    // Nothing new: the last good model, with the reason.
+    e->response = previous->response;
+    e->vignette = previous->vignette;
+    e->model_version = previous->model_version;
+  }
+  e->converged = step.converged;
+  e->iterations = step.iterations;
+  e->cost = step.cost;
+  e->residual_rms = step.residual_rms;
+  e->keyframes = step.keyframes;
+  e->points = step.points;
+  e->backend_ms = last_backend_ms_;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    e->keyframes_dropped = dropped_;
+  }
+  if (options_.response_from_power_sweep) {
+    e->ambiguity = AmbiguityResolution::PowerSweep;
+    e->ambiguity_detail = "response calibrated from an illuminator power sweep (radiance proportional to power) and held";
+  } else if (saw_known_exposure_) {
+    e->ambiguity = AmbiguityResolution::KnownExposures;
+    e->ambiguity_detail = "exposure times x gain reported by the source hold the keyframe exposures";
+  } else {
+    e->ambiguity = AmbiguityResolution::Normalisation;
+    e->ambiguity_detail =
+        "first frame's exposure = 1 (relative units); gamma pinned only by the response basis and the prior";
+  }
+  e->status = step.status;
+  e->keyframe_exposures = backend_.keyframe_exposures();
+  std::lock_guard<std::mutex> lock(estimate_mutex_);
+  estimate_ = std::move(e);
+}
+
+void OnlinePhotometricCalibration::run_job(Job& job) {
+  const auto start = std::chrono::steady_clock::now();
+  switch (job.kind) {
+    case Job::Keyframe: {
+      saw_known_exposure_ |= job.keyframe.exposure_known && options_.use_reported_exposures;
+      backend_.add_keyframe(std::move(job.keyframe));
+      const BackendStep step = backend_.optimise(options_.iterations_per_keyframe);
+      last_backend_ms_ = milliseconds_since(start);
+      publish(step);
+      break;
+    }
+    case Job::Finish: {
+      const BackendStep step = backend_.optimise(options_.final_iterations, true);
+      last_backend_ms_ = milliseconds_since(start);
+      publish(step);
+      break;
+    }
+    case Job::Reset: {
+      backend_.reset();
+      version_ = 0;
+      saw_known_exposure_ = false;
+      last_backend_ms_ = 0.0;
+      std::lock_guard<std::mutex> lock(estimate_mutex_);
+      estimate_ = initial_estimate();
+      break;
+    }
+  }
+}
+
+void OnlinePhotometricCalibration::backend_loop() {
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  for (;;) {
+    queue_changed_.wait(lock, [this] { return stopping_ || !queue_.empty(); });
+    if (stopping_) return;
+    Job job = std::move(queue_.front());
+    queue_.pop_front();
+    busy_ = true;
+    lock.unlock();
+    run_job(job);
+    lock.lock();
+    busy_ = false;
+    queue_changed_.notify_all();
+  }
+}
+
+void OnlinePhotometricCalibration::submit_and_wait(Job::Kind kind) {
+  Job job;
+  job.kind = kind;
+  if (!options_.background_thread || !thread_.joinable()) {
+    if (options_.run_backend || kind == Job::Reset) run_job(job);
+    return;
+  }
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  if (kind == Job::Reset) {
+    // Waiting keyframes belong to the old run.
+    std::erase_if(queue_, [](const Job& j) { return j.kind == Job::Keyframe; });
+  }
+  queue_.push_back(std::move(job));
+  queue_changed_.notify_all();
+  queue_changed_.wait(lock, [this] { return stopping_ || (queue_.empty() && !busy_); });
+}
+
+void OnlinePhotometricCalibration::finish() { submit_and_wait(Job::Finish); }
+
+void OnlinePhotometricCalibration::reset() {
+  submit_and_wait(Job::Reset);
+  tracker_.reset();
+  exposure_.reset();
+  selector_.reset();
+  history_.clear();
+  const std::shared_ptr<const PhotometricEstimate> model = estimate();
+  exposure_.set_model(model->response, model->vignette);
+  exposure_.reset();
+  const std::vector<double> table = model->response.inverse_table(256);
+  for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
+  applied_version_ = model->model_version;
+  inverse_vignette_version_ = -1;
+}
+
+}  // namespace nirslam

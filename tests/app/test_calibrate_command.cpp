@@ -1,0 +1,41 @@
+// `nirslam calibrate`: DSO/TUM monoVO output and errors against a simulated sequence's ground truth.
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "cli_runner.hpp"
+#include "nirslam/photometric/response_model.hpp"
+
+namespace nirslam {
+namespace {
+
+using testing::fresh_dir;
+using testing::lines_of;
+using testing::run_command;
+
+TEST(CalibrateCommand, WritesDsoFilesAndErrorsForASimulatedSequence) {
+  const auto dir = fresh_dir("calibrate");
+  const std::string exe = NIRSLAM_EXECUTABLE;
+  const auto sim = run_command(exe + " simulate --scene room --frames 40 --out " + (dir / "seq").string());
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  const auto r = run_command(exe + " calibrate " + (dir / "seq").string() + " --out " + (dir / "out").string() +
+                             " --json " + (dir / "c.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("errors vs ground truth"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("ambiguity resolution: known exposures"), std::string::npos) << r.output;
+  EXPECT_EQ(read_pcalib(dir / "out" / "pcalib.txt").size(), 256u);
+  EXPECT_FALSE(read_vignette_png(dir / "out" / "vignette.png").empty());
+  EXPECT_EQ(lines_of(dir / "out" / "times.txt").size(), 40u);
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "calibration.json"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "c.json"));
+}
+
+TEST(CalibrateCommand, MissingFolderIsNamed) {
+  const auto r = run_command(std::string(NIRSLAM_EXECUTABLE) + " calibrate /nonexistent/seq --out /tmp/x");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("/nonexistent/seq"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace nirslam

@@ -1,0 +1,101 @@
+#pragma once
+
+// The monocular initialiser, after DSO's CoarseInitializer: points of the first frame start at
+// inverse depth 1; every following frame is aligned coarse-to-fine, jointly refining its pose,
+// affine brightness and all inverse depths (Schur complement over the points). While the
+// translation is small the depths are pulled to 1 and the translation to 0 (rotation alone
+// explains small motions); once the translational flow exceeds the parallax threshold the
+// alignment "snaps": depths are regularised towards their neighbours' mean instead, and a few
+// frames later the result is handed to the window.
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nirslam/geometry/se3.hpp"
+#include "nirslam/odometry/image_pyramid.hpp"
+
+namespace nirslam::odometry {
+
+struct InitializerOptions {
+  int points = 1500;
+  double min_gradient = 7.0;
+  double huber_threshold = 9.0;
+  double min_parallax_px = 6.0;      // rms translational flow at level 0
+  int frames_after_snap = 4;
+  // Before snapping, depths are held at 1 and the translation at 0 by strong priors (DSO's
+  // alphaW = 150^2, per point): over a small baseline a sideways translation with free depths
+  // explains a rotation as well as the rotation does, and picking it would distort the map.
+  double depth_prior_weight = 150.0 * 150.0;
+  double translation_prior_weight = 150.0 * 150.0;  // times the point count
+  double neighbour_weight = 1.0;     // after snapping: rho -> median of neighbours (DSO's coupling)
+  double affine_a_prior = 1.0;
+  double affine_b_prior = 1e-2;
+};
+
+enum class InitializerState { NeedFirstFrame, Tracking, Succeeded, Failed };
+
+struct InitialPoint {
+  Eigen::Vector2d pixel;
+  double inverse_depth = 1.0;
+  bool good = true;  // inlier in the last frame
+};
+
+class CoarseInitializer {
+public:
+  CoarseInitializer(std::vector<LevelCamera> cameras, const InitializerOptions& options);
+
+  void set_first(std::shared_ptr<const ImagePyramid> pyramid, double exposure);
+  // Aligns one more frame; Succeeded once enough parallax was kept for frames_after_snap frames.
+  InitializerState add_frame(const ImagePyramid& frame, double exposure);
+  // Ends early with the current estimate (a static camera): depths stay near 1.
+  void force_success() { state_ = InitializerState::Succeeded; }
+
+  InitializerState state() const { return state_; }
+  bool snapped() const { return snapped_; }
+  int frames_tracked() const { return frames_; }
+  const SE3& T_frame_first() const { return T_frame_first_; }  // last frame
+  double affine_a() const { return a_; }
+  double affine_b() const { return b_; }
+  double rms() const { return rms_; }
+  double parallax_px() const { return parallax_; }
+  const std::vector<InitialPoint>& points() const { return points_; }
+  const std::shared_ptr<const ImagePyramid>& first_pyramid() const { return first_; }
+  double first_exposure() const { return first_exposure_; }
+
+private:
+  // One LM iteration set on a level; returns the rms.
+  double optimize_level(int level, const ImagePyramid& frame, double exposure, int iterations);
+  double evaluate(int level, const ImagePyramid& frame, double exposure, const SE3& T, double a, double b,
+                  const std::vector<double>& rho, bool linearize);
+  void update_neighbour_means();
+
+  std::vector<LevelCamera> cameras_;
+  InitializerOptions options_;
+  std::shared_ptr<const ImagePyramid> first_;
+  double first_exposure_ = 1.0;
+  std::vector<InitialPoint> points_;
+  std::vector<std::array<int, 6>> neighbours_;
+  std::vector<double> neighbour_mean_;
+  InitializerState state_ = InitializerState::NeedFirstFrame;
+  SE3 T_frame_first_;
+  double a_ = 0.0;
+  double b_ = 0.0;
+  bool snapped_ = false;
+  int frames_ = 0;
+  int frames_since_snap_ = 0;
+  double rms_ = 0.0;
+  double parallax_ = 0.0;
+
+  // Scratch of evaluate(..., linearize = true).
+  Eigen::Matrix<double, 8, 8> H_ff_;
+  Eigen::Matrix<double, 8, 1> b_f_;
+  std::vector<Eigen::Matrix<double, 8, 1>> H_fp_;
+  std::vector<double> H_pp_;
+  std::vector<double> b_p_;
+  std::vector<int> inliers_;
+};
+
+}  // namespace nirslam::odometry

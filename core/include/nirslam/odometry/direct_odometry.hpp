@@ -1,0 +1,166 @@
+#pragma once
+
+// Direct sparse monocular odometry in the class of DSO (Engel, Koltun, Cremers 2018):
+// coarse-to-fine direct alignment of every frame to the newest keyframe, immature points whose
+// inverse depth is found by epipolar search, and a sliding window of keyframes optimised jointly
+// (poses, affine brightness, inverse depths) with old keyframes marginalised into a prior.
+//
+// Brightness model between a host keyframe h and a target frame t (per frame affine a, b and,
+// when known, the exposure e):  I_t(x') = exp(a_t - a_h) (e_t / e_h) (I_h(x) - b_h) + b_t.
+// Without an exposure e = 1 and a, b are nearly free (plain DSO); with one, a strong prior keeps
+// a and b near 0, so the exposure ratio carries the brightness change.
+//
+// Scale is monocular and arbitrary (the initialiser sets the mean inverse depth of its points to
+// 1). process() is not thread-safe: call it from one thread.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include "nirslam/camera/camera_model.hpp"
+#include "nirslam/geometry/se3.hpp"
+
+namespace nirslam {
+
+struct OdometryOptions {
+  // Image pyramid: levels used by the coarse tracker and initialiser (the coarsest level is at
+  // least min_coarsest_width pixels wide; fewer levels are used for small images).
+  int pyramid_levels = 5;
+  int min_coarsest_width = 40;
+
+  // Points.
+  int points_per_frame = 2000;          // active points kept in the window
+  int immature_points_per_keyframe = 1500;
+  double min_gradient = 7.0;            // grey levels added to the region's median gradient
+  int max_epipolar_search_px = 30;      // along the epipolar line, at level 0 (640x480)
+  double min_trace_quality = 3.0;       // second-best / best energy along the line
+  double max_activation_interval_px = 8.0;
+  bool drop_points_out_of_newest = true;  // points the newest keyframe cannot see leave the window
+
+  // Window.
+  int window_size = 7;                  // keyframes
+  int window_iterations = 6;            // Levenberg-Marquardt iterations per keyframe
+  double huber_threshold = 9.0;         // grey levels
+  double gradient_weight_c = 50.0;      // w = c^2 / (c^2 + |grad I|^2)
+  double outlier_energy = 12.0 * 12.0;  // per pattern pixel: a residual above is an outlier
+
+  // Keyframes: a new keyframe when the weighted sum of the mean optical flow (translation
+  // alone, and translation + rotation, as a fraction of w + h) and the brightness change
+  // exceeds 1, or when the tracking residual doubled since the keyframe's first frame.
+  double keyframe_flow_weight = 0.04 * (640 + 480);  // DSO's setting_maxShiftWeight*
+  double keyframe_brightness_weight = 2.0;
+  int max_frames_between_keyframes = 30;
+
+  // Tracking.
+  int tracking_iterations_per_level = 8;
+  double max_tracking_rms = 25.0;       // grey levels (Huber-weighted rms); above: lost
+  double min_tracking_inlier_fraction = 0.3;
+
+  // Brightness priors: energy weights pulling a and b of each keyframe to 0 (the first keyframe
+  // of a segment is fixed). Without an exposure the prior is weak compared with the data (whose
+  // Hessian in a is ~1e7-1e8 per keyframe pair) but keeps the brightness gauge from drifting;
+  // the tracker uses a tenth of these.
+  double affine_a_prior_known_exposure = 1e10;
+  double affine_b_prior_known_exposure = 1e6;
+  double affine_a_prior_free = 1e5;
+  double affine_b_prior_free = 1e2;
+
+  // Initialiser.
+  double init_min_parallax_px = 6.0;    // rms translational flow at level 0 for a 640-wide image
+  int init_static_frames = 30;          // initialise without parallax after this many frames
+  int init_max_frames = 60;             // restart from a new reference frame after this many
+};
+
+struct OdometryFrame {
+  std::int64_t frame_index = 0;
+  double timestamp_s = 0.0;
+  cv::Mat image;  // CV_32FC1, 0..255 scale: raw grey, or the photometrically corrected G(I)/V
+  // Relative exposure e_t from the photometric calibration, when known: the brightness model
+  // between host h and target t then uses e_t / e_h, affine a, b kept near 0 by a strong prior.
+  // When absent: plain DSO, affine brightness free (weak prior).
+  std::optional<double> exposure;
+  std::optional<double> illuminator_power_w;  // unused for now (issue 8 adds the lamp's term)
+};
+
+enum class TrackingStatus { Initialising, Tracking, Lost, NewSegment };
+const char* to_string(TrackingStatus status);
+
+struct OdometryTimings {
+  double pyramid_ms = 0.0;
+  double tracking_ms = 0.0;  // coarse alignment (or the initialiser) and immature point tracing
+  double mapping_ms = 0.0;   // window optimisation + point activation + marginalisation (keyframes)
+  double total_ms = 0.0;
+};
+
+struct OdometryResult {
+  std::int64_t frame_index = 0;
+  double timestamp_s = 0.0;
+  TrackingStatus status = TrackingStatus::Initialising;
+  bool is_keyframe = false;
+  int segment = 0;                   // increments after every loss + re-initialisation
+  std::optional<SE3> T_world_cam;    // empty until initialised, and when lost
+  // Of the frame's tracking against its reference keyframe.
+  double residual_rms = 0.0;
+  int residual_count = 0;
+  double affine_a = 0.0;
+  double affine_b = 0.0;
+  OdometryTimings timings;
+  std::string message;               // e.g. why tracking was lost
+};
+
+struct KeyframeState {
+  std::int64_t frame_index = 0;
+  double timestamp_s = 0.0;
+  int segment = 0;
+  SE3 T_world_cam;
+  double affine_a = 0.0;
+  double affine_b = 0.0;
+  bool marginalised = false;
+};
+
+struct MapPoint {
+  Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
+  float intensity = 0.0f;  // host image at the point, 0..255
+  int segment = 0;
+  bool active = false;     // false: marginalised or dropped from the window
+};
+
+struct PoseStamped {
+  std::int64_t frame_index = 0;
+  double timestamp_s = 0.0;
+  int segment = 0;
+  SE3 T_world_cam;
+};
+
+class DirectOdometry {
+public:
+  // `camera` describes the (undistorted) input images.
+  explicit DirectOdometry(const PinholeCamera& camera, OdometryOptions options = {});
+  ~DirectOdometry();
+  DirectOdometry(const DirectOdometry&) = delete;
+  DirectOdometry& operator=(const DirectOdometry&) = delete;
+
+  // Throws std::invalid_argument naming the field for an image of the wrong size or type.
+  OdometryResult process(const OdometryFrame& frame);
+
+  // Every processed frame with a pose: T_world_kf (latest estimate) * T_kf_frame, as DSO's
+  // final output. Frames seen by the initialiser get their poses once it succeeds.
+  std::vector<PoseStamped> trajectory() const;
+  std::vector<KeyframeState> keyframes() const;
+  std::vector<MapPoint> points() const;  // active and marginalised
+  void reset();
+
+  const OdometryOptions& options() const { return options_; }
+
+private:
+  struct Impl;
+  OdometryOptions options_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace nirslam

@@ -1,0 +1,138 @@
+#pragma once
+
+// The sliding-window energy of DSO: keyframes (pose, affine a, b) and their hosted points
+// (inverse depth), photometric residuals of every point in every other keyframe, optimised by
+// Levenberg-Marquardt on the Schur complement over points. Old keyframes are marginalised into
+// a Gaussian prior (H_M, b_M) on the remaining keyframes, by Schur complement of their points
+// and then of themselves; frames the prior touches keep their Jacobians at their first estimate
+// (FEJ), so the prior and the residuals agree on the null space.
+//
+// Energy convention: E = sum W r^2 (+ priors); H = sum W J J^T, b = sum W J r, step H dx = -b.
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nirslam/geometry/se3.hpp"
+#include "nirslam/odometry/image_pyramid.hpp"
+#include "nirslam/odometry/photometric_residual.hpp"
+
+namespace nirslam::odometry {
+
+struct FrameParameters {
+  SE3 T_cam_world;
+  double affine_a = 0.0;
+  double affine_b = 0.0;
+};
+
+struct PointResidual {
+  std::int64_t target_id = 0;
+  bool inlier = true;      // false: out of view or above the outlier energy at the last linearisation
+  double energy = 0.0;     // at the last evaluation
+  // Scratch of the current linearisation: coupling to the target frame's 8 parameters.
+  Vector8d H_target_point = Vector8d::Zero();
+};
+
+struct WindowPoint {
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // host, level 0, integer
+  std::array<float, kPatternSize> host_intensity{};
+  double inverse_depth = 1.0;
+  double inverse_depth_prior_weight = 0.0;  // the initialiser's points fix the scale, as in DSO
+  double inverse_depth_prior_mean = 1.0;
+  std::vector<PointResidual> residuals;
+  // Scratch of the current linearisation.
+  double H_pp = 0.0;
+  double b_p = 0.0;
+  Vector8d H_host_point = Vector8d::Zero();
+  double step = 0.0;
+  double backup = 0.0;
+};
+
+struct WindowFrame {
+  std::int64_t id = 0;  // unique, increasing
+  std::shared_ptr<const ImagePyramid> pyramid;
+  double exposure = 1.0;
+  FrameParameters state;
+  FrameParameters linearisation;  // first estimate, once first_estimate_fixed
+  bool first_estimate_fixed = false;
+  double affine_a_prior_weight = 0.0;
+  double affine_b_prior_weight = 0.0;
+  double pose_prior_weight = 0.0;  // the gauge: the first keyframe of a segment
+  SE3 pose_prior;
+  std::vector<WindowPoint> points;
+  FrameParameters backup;
+};
+
+struct WindowOptions {
+  double huber_threshold = 9.0;
+  double gradient_weight_c = 50.0;
+  double outlier_energy = 12.0 * 12.0;  // per pattern pixel
+  double initial_lambda = 1e-4;
+};
+
+struct WindowStatistics {
+  double initial_energy = 0.0;
+  double final_energy = 0.0;
+  int iterations = 0;
+  int residuals = 0;
+};
+
+class WindowOptimizer {
+public:
+  WindowOptimizer(const LevelCamera& camera, const WindowOptions& options);
+
+  std::vector<WindowFrame>& frames() { return frames_; }
+  const std::vector<WindowFrame>& frames() const { return frames_; }
+  int index_of(std::int64_t id) const;
+
+  // Appends a keyframe (no points yet); the prior grows by an empty block.
+  WindowFrame& add_frame(WindowFrame frame);
+  // Gives a point residuals in every other keyframe of the window.
+  void connect_to_all(WindowPoint& point, std::int64_t host_id) const;
+
+  // The total energy at the current state (clamped residual energies, priors).
+  double energy();
+  // Levenberg-Marquardt; keeps the best state.
+  WindowStatistics optimize(int iterations);
+  // One Gauss-Newton (lambda = 0) or LM step from the current state, not applied: the frame part
+  // (8 per frame, in window order). For tests.
+  Eigen::VectorXd compute_step(double lambda);
+
+  // Marginalises frame `index`: its points' residuals into the prior (points Schur-complemented
+  // out), residuals of other points into it dropped, then the frame itself Schur-complemented
+  // out of the prior. Returns the removed frame (points included, for the map).
+  WindowFrame marginalize_frame(int index);
+  // Refines one point's inverse depth alone, the frames held fixed (for a newly activated
+  // point). False when fewer than `min_inliers` residuals fit.
+  bool optimize_point(int host_index, WindowPoint& point, int iterations, int min_inliers);
+  // Removes points with fewer than `min_inliers` inlier residuals, and with `out_of_newest` also
+  // those whose residual in the newest keyframe is out of view or an outlier; returns them.
+  std::vector<std::pair<std::int64_t, WindowPoint>> remove_bad_points(int min_inliers, bool out_of_newest = false);
+
+  const Eigen::MatrixXd& prior_hessian() const { return H_prior_; }
+  const Eigen::VectorXd& prior_gradient() const { return b_prior_; }
+  int point_count() const;
+  double last_residual_rms() const { return last_rms_; }
+
+private:
+  struct Linearization;
+  // Builds the frame system (H, b) with points Schur-complemented; frames in window order.
+  void linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool schur, double lambda,
+                 const std::vector<int>* only_hosts, bool include_priors);
+  Vector8d prior_delta(const WindowFrame& frame) const;
+  void apply_step(const Eigen::VectorXd& dx, double lambda);
+  void backup();
+  void restore();
+
+  LevelCamera camera_;
+  WindowOptions options_;
+  std::vector<WindowFrame> frames_;
+  Eigen::MatrixXd H_prior_;  // at the frames' first estimates
+  Eigen::VectorXd b_prior_;
+  double last_rms_ = 0.0;
+};
+
+}  // namespace nirslam::odometry

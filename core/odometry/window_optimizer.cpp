@@ -1,0 +1,597 @@
+#include "nirslam/odometry/window_optimizer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+namespace nirslam::odometry {
+
+namespace {
+
+// Geometry and brightness of one (host, target) pair, shared by all the host's points.
+struct PairCache {
+  Eigen::Matrix3d R;        // T_target_host at the current state
+  Eigen::Vector3d t;
+  Eigen::Matrix3d R_jacobian;  // at the first estimates (FEJ)
+  Eigen::Vector3d t_jacobian;
+  Matrix6d adjoint_jacobian;
+  AffineTransfer affine;
+  bool valid = false;
+};
+
+const FrameParameters& jacobian_state(const WindowFrame& f) {
+  static const bool no_fej = std::getenv("NIRSLAM_NO_FEJ") != nullptr;
+  return f.first_estimate_fixed && !no_fej ? f.linearisation : f.state;
+}
+
+std::vector<PairCache> make_pairs(const std::vector<WindowFrame>& frames) {
+  const std::size_t n = frames.size();
+  std::vector<PairCache> pairs(n * n);
+  for (std::size_t h = 0; h < n; ++h) {
+    for (std::size_t t = 0; t < n; ++t) {
+      if (h == t) continue;
+      PairCache& p = pairs[h * n + t];
+      const SE3 T_th = frames[t].state.T_cam_world * frames[h].state.T_cam_world.inverse();
+      const SE3 T_th_jac = jacobian_state(frames[t]).T_cam_world * jacobian_state(frames[h]).T_cam_world.inverse();
+      p.R = T_th.rotation_matrix();
+      p.t = T_th.translation();
+      p.R_jacobian = T_th_jac.rotation_matrix();
+      p.t_jacobian = T_th_jac.translation();
+      p.adjoint_jacobian = adjoint(T_th_jac);
+      p.affine = affine_transfer(frames[h].state.affine_a, frames[h].state.affine_b, frames[h].exposure,
+                                 frames[t].state.affine_a, frames[t].state.affine_b, frames[t].exposure);
+      p.valid = true;
+    }
+  }
+  return pairs;
+}
+
+// Maps the 8 relative parameters (xi of T_target_host, a_t, b_t) to the host's 8 parameters.
+Matrix8d host_map(const PairCache& p) {
+  Matrix8d M = Matrix8d::Zero();
+  M.topLeftCorner<6, 6>() = -p.adjoint_jacobian.transpose();
+  M(6, 6) = -1.0;
+  M(7, 7) = -p.affine.scale;
+  return M;
+}
+
+}  // namespace
+
+WindowOptimizer::WindowOptimizer(const LevelCamera& camera, const WindowOptions& options)
+    : camera_(camera), options_(options) {}
+
+int WindowOptimizer::index_of(std::int64_t id) const {
+  for (std::size_t i = 0; i < frames_.size(); ++i)
+    if (frames_[i].id == id) return static_cast<int>(i);
+  return -1;
+}
+
+WindowFrame& WindowOptimizer::add_frame(WindowFrame frame) {
+  frames_.push_back(std::move(frame));
+  const auto n = static_cast<Eigen::Index>(8 * frames_.size());
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
+  if (H_prior_.size() > 0) {
+    H.topLeftCorner(H_prior_.rows(), H_prior_.cols()) = H_prior_;
+    b.head(b_prior_.size()) = b_prior_;
+  }
+  H_prior_ = std::move(H);
+  b_prior_ = std::move(b);
+  return frames_.back();
+}
+
+void WindowOptimizer::connect_to_all(WindowPoint& point, std::int64_t host_id) const {
+  point.residuals.clear();
+  for (const auto& f : frames_) {
+    if (f.id == host_id) continue;
+    PointResidual r;
+    r.target_id = f.id;
+    point.residuals.push_back(r);
+  }
+}
+
+int WindowOptimizer::point_count() const {
+  int n = 0;
+  for (const auto& f : frames_) n += static_cast<int>(f.points.size());
+  return n;
+}
+
+Vector8d WindowOptimizer::prior_delta(const WindowFrame& frame) const {
+  Vector8d d = Vector8d::Zero();
+  if (!frame.first_estimate_fixed) return d;
+  d.head<6>() = (frame.state.T_cam_world * frame.linearisation.T_cam_world.inverse()).log();
+  d[6] = frame.state.affine_a - frame.linearisation.affine_a;
+  d[7] = frame.state.affine_b - frame.linearisation.affine_b;
+  return d;
+}
+
+double WindowOptimizer::energy() {
+  const std::size_t n = frames_.size();
+  const auto pairs = make_pairs(frames_);
+  const double k = options_.huber_threshold;
+  const double c2 = options_.gradient_weight_c * options_.gradient_weight_c;
+  const double clamp = options_.outlier_energy * kPatternSize;
+  double e = 0.0;
+  double inlier_energy = 0.0;
+  int inlier_count = 0;
+  for (std::size_t h = 0; h < n; ++h) {
+    for (auto& point : frames_[h].points) {
+      if (point.inverse_depth_prior_weight > 0.0) {
+        const double d = point.inverse_depth - point.inverse_depth_prior_mean;
+        e += point.inverse_depth_prior_weight * d * d;
+      }
+      for (auto& res : point.residuals) {
+        const int t = index_of(res.target_id);
+        if (t < 0) continue;
+        const PairCache& p = pairs[h * n + static_cast<std::size_t>(t)];
+        const PyramidLevel& target = frames_[static_cast<std::size_t>(t)].pyramid->level(0);
+        double energy = 0.0;
+        bool in_view = true;
+        for (int i = 0; i < kPatternSize && in_view; ++i) {
+          const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(kPattern[static_cast<std::size_t>(i)][0],
+                                                                    kPattern[static_cast<std::size_t>(i)][1]);
+          Warp w;
+          if (!warp_pixel(camera_, p.R, p.t, px, point.inverse_depth, w) ||
+              !camera_.inside(w.pixel.x(), w.pixel.y(), 1.0)) {
+            in_view = false;
+            break;
+          }
+          const Eigen::Vector3f s =
+              target.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
+          const double r = s[0] - p.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host) -
+                           p.affine.b_target;
+          const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()));
+          const double hw = huber_weight(r, k);
+          energy += wg * hw * r * r * (2.0 - hw);
+        }
+        res.energy = in_view ? std::min(energy, clamp) : clamp;
+        e += res.energy;
+        if (in_view && energy < clamp) {
+          inlier_energy += energy;
+          inlier_count += kPatternSize;
+        }
+      }
+    }
+  }
+  last_rms_ = inlier_count > 0 ? std::sqrt(inlier_energy / inlier_count) : 0.0;
+  // Priors.
+  for (std::size_t i = 0; i < n; ++i) {
+    const WindowFrame& f = frames_[i];
+    e += f.affine_a_prior_weight * f.state.affine_a * f.state.affine_a;
+    e += f.affine_b_prior_weight * f.state.affine_b * f.state.affine_b;
+    if (f.pose_prior_weight > 0.0)
+      e += f.pose_prior_weight * (f.state.T_cam_world * f.pose_prior.inverse()).log().squaredNorm();
+  }
+  Eigen::VectorXd delta(static_cast<Eigen::Index>(8 * n));
+  for (std::size_t i = 0; i < n; ++i) delta.segment<8>(static_cast<Eigen::Index>(8 * i)) = prior_delta(frames_[i]);
+  e += 2.0 * b_prior_.dot(delta) + delta.dot(H_prior_ * delta);
+  return e;
+}
+
+void WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool schur, double lambda,
+                                const std::vector<int>* only_hosts, bool include_priors) {
+  const std::size_t n = frames_.size();
+  const auto N = static_cast<Eigen::Index>(8 * n);
+  H.setZero(N, N);
+  b.setZero(N);
+  const auto pairs = make_pairs(frames_);
+  std::vector<Matrix8d> host_maps(n * n);
+  for (std::size_t i = 0; i < n * n; ++i)
+    if (pairs[i].valid) host_maps[i] = host_map(pairs[i]);
+  const double k = options_.huber_threshold;
+  const double c2 = options_.gradient_weight_c * options_.gradient_weight_c;
+  const double outlier = options_.outlier_energy * kPatternSize;
+
+  // Relative (8x8) blocks per pair, mapped to host/target at the end, as DSO accumulates.
+  std::vector<Matrix8d> H_rel(n * n, Matrix8d::Zero());
+  std::vector<Vector8d> b_rel(n * n, Vector8d::Zero());
+  std::vector<int> target_index;
+
+  auto hosts_to_use = [&](std::size_t h) {
+    return only_hosts == nullptr ||
+           std::find(only_hosts->begin(), only_hosts->end(), static_cast<int>(h)) != only_hosts->end();
+  };
+
+  for (std::size_t h = 0; h < n; ++h) {
+    if (!hosts_to_use(h)) continue;
+    for (auto& point : frames_[h].points) {
+      point.H_pp = point.inverse_depth_prior_weight;
+      point.b_p = point.inverse_depth_prior_weight * (point.inverse_depth - point.inverse_depth_prior_mean);
+      point.H_host_point.setZero();
+      for (auto& res : point.residuals) {
+        res.H_target_point.setZero();
+        res.inlier = false;
+        const int t = index_of(res.target_id);
+        if (t < 0) continue;
+        const std::size_t pair_index = h * n + static_cast<std::size_t>(t);
+        const PairCache& p = pairs[pair_index];
+        const PyramidLevel& target = frames_[static_cast<std::size_t>(t)].pyramid->level(0);
+
+        Matrix8d H_r = Matrix8d::Zero();
+        Vector8d b_r = Vector8d::Zero();
+        Vector8d H_rp = Vector8d::Zero();
+        double H_pp = 0.0;
+        double b_pp = 0.0;
+        double energy = 0.0;
+        bool in_view = true;
+        for (int i = 0; i < kPatternSize; ++i) {
+          const auto& o = kPattern[static_cast<std::size_t>(i)];
+          const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(o[0], o[1]);
+          Warp w;
+          Warp wj;
+          if (!warp_pixel(camera_, p.R, p.t, px, point.inverse_depth, w) ||
+              !camera_.inside(w.pixel.x(), w.pixel.y(), 1.0) ||
+              !warp_pixel(camera_, p.R_jacobian, p.t_jacobian, px, point.inverse_depth, wj)) {
+            in_view = false;
+            break;
+          }
+          const Eigen::Vector3f s =
+              target.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
+          const double host_term =
+              p.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host);
+          const double r = s[0] - host_term - p.affine.b_target;
+          const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()));
+          const double hw = huber_weight(r, k);
+          energy += wg * hw * r * r * (2.0 - hw);
+          const double W = wg * hw;
+
+          Matrix26d d_pose;
+          Eigen::Vector2d d_rho;
+          warp_jacobians(camera_, wj, p.t_jacobian, d_pose, d_rho);
+          const Eigen::Vector2d g = s.tail<2>().cast<double>();
+          Vector8d J;
+          J.head<6>() = (g.transpose() * d_pose).transpose();
+          J[6] = -host_term;
+          J[7] = -1.0;
+          const double J_rho = g.dot(d_rho);
+          H_r.selfadjointView<Eigen::Upper>().rankUpdate(J, W);
+          b_r += W * r * J;
+          H_rp += W * J_rho * J;
+          H_pp += W * J_rho * J_rho;
+          b_pp += W * J_rho * r;
+        }
+        res.energy = in_view ? energy : outlier;
+        if (!in_view || energy > outlier) continue;
+        res.inlier = true;
+        H_rel[pair_index] += H_r.selfadjointView<Eigen::Upper>();
+        b_rel[pair_index] += b_r;
+        const Matrix8d& M = host_maps[pair_index];
+        point.H_host_point += M * H_rp;
+        res.H_target_point = H_rp;
+        point.H_pp += H_pp;
+        point.b_p += b_pp;
+      }
+    }
+  }
+
+  for (std::size_t h = 0; h < n; ++h) {
+    for (std::size_t t = 0; t < n; ++t) {
+      if (h == t) continue;
+      const std::size_t i = h * n + t;
+      const Matrix8d& M = host_maps[i];
+      const auto ih = static_cast<Eigen::Index>(8 * h);
+      const auto it = static_cast<Eigen::Index>(8 * t);
+      H.block<8, 8>(ih, ih) += M * H_rel[i] * M.transpose();
+      H.block<8, 8>(ih, it) += M * H_rel[i];
+      H.block<8, 8>(it, ih) += H_rel[i] * M.transpose();
+      H.block<8, 8>(it, it) += H_rel[i];
+      b.segment<8>(ih) += M * b_rel[i];
+      b.segment<8>(it) += b_rel[i];
+    }
+  }
+
+  if (include_priors) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const WindowFrame& f = frames_[i];
+      const auto o = static_cast<Eigen::Index>(8 * i);
+      H(o + 6, o + 6) += f.affine_a_prior_weight;
+      b(o + 6) += f.affine_a_prior_weight * f.state.affine_a;
+      H(o + 7, o + 7) += f.affine_b_prior_weight;
+      b(o + 7) += f.affine_b_prior_weight * f.state.affine_b;
+      if (f.pose_prior_weight > 0.0) {
+        H.block<6, 6>(o, o).diagonal().array() += f.pose_prior_weight;
+        b.segment<6>(o) += f.pose_prior_weight * (f.state.T_cam_world * f.pose_prior.inverse()).log();
+      }
+    }
+    Eigen::VectorXd delta(N);
+    for (std::size_t i = 0; i < n; ++i) delta.segment<8>(static_cast<Eigen::Index>(8 * i)) = prior_delta(frames_[i]);
+    H += H_prior_;
+    b += b_prior_ + H_prior_ * delta;
+  }
+
+  if (lambda > 0.0) H.diagonal() *= 1.0 + lambda;
+  if (!schur) return;
+
+  // Schur complement over the points: each couples its host and its inlier targets.
+  std::vector<std::pair<Eigen::Index, const Vector8d*>> coupling;
+  for (std::size_t h = 0; h < n; ++h) {
+    if (!hosts_to_use(h)) continue;
+    for (auto& point : frames_[h].points) {
+      if (point.H_pp <= 0.0) continue;
+      const double H_pp = point.H_pp * (1.0 + lambda) + 1e-12;
+      coupling.clear();
+      coupling.emplace_back(static_cast<Eigen::Index>(8 * h), &point.H_host_point);
+      for (const auto& res : point.residuals) {
+        if (!res.inlier) continue;
+        coupling.emplace_back(static_cast<Eigen::Index>(8 * index_of(res.target_id)), &res.H_target_point);
+      }
+      for (const auto& [ia, ca] : coupling) {
+        b.segment<8>(ia) -= *ca * (point.b_p / H_pp);
+        for (const auto& [ib, cb] : coupling) H.block<8, 8>(ia, ib) -= *ca * cb->transpose() / H_pp;
+      }
+    }
+  }
+}
+
+Eigen::VectorXd WindowOptimizer::compute_step(double lambda) {
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  linearize(H, b, true, lambda, nullptr, true);
+  Eigen::VectorXd dx = H.ldlt().solve(-b);
+  // Back-substitute the points, for apply_step.
+  const std::size_t n = frames_.size();
+  for (std::size_t h = 0; h < n; ++h) {
+    for (auto& point : frames_[h].points) {
+      if (point.H_pp <= 0.0) {
+        point.step = 0.0;
+        continue;
+      }
+      double rhs = point.b_p + point.H_host_point.dot(dx.segment<8>(static_cast<Eigen::Index>(8 * h)));
+      for (const auto& res : point.residuals)
+        if (res.inlier) rhs += res.H_target_point.dot(dx.segment<8>(static_cast<Eigen::Index>(8 * index_of(res.target_id))));
+      point.step = -rhs / (point.H_pp * (1.0 + lambda) + 1e-12);
+    }
+  }
+  return dx;
+}
+
+void WindowOptimizer::apply_step(const Eigen::VectorXd& dx, double /*lambda*/) {
+  for (std::size_t i = 0; i < frames_.size(); ++i) {
+    WindowFrame& f = frames_[i];
+    const auto o = static_cast<Eigen::Index>(8 * i);
+    f.state.T_cam_world = SE3::exp(dx.segment<6>(o)) * f.state.T_cam_world;
+    f.state.affine_a += dx(o + 6);
+    f.state.affine_b += dx(o + 7);
+    for (auto& point : f.points) point.inverse_depth = std::clamp(point.inverse_depth + point.step, 1e-4, 1e3);
+  }
+}
+
+void WindowOptimizer::backup() {
+  for (auto& f : frames_) {
+    f.backup = f.state;
+    for (auto& p : f.points) p.backup = p.inverse_depth;
+  }
+}
+
+void WindowOptimizer::restore() {
+  for (auto& f : frames_) {
+    f.state = f.backup;
+    for (auto& p : f.points) p.inverse_depth = p.backup;
+  }
+}
+
+WindowStatistics WindowOptimizer::optimize(int iterations) {
+  WindowStatistics stats;
+  if (frames_.size() < 2) return stats;
+  double e = energy();
+  stats.initial_energy = e;
+  double lambda = options_.initial_lambda;
+  for (int it = 0; it < iterations; ++it) {
+    backup();
+    const Eigen::VectorXd dx = compute_step(lambda);
+    if (!dx.allFinite()) break;
+    apply_step(dx, lambda);
+    const double e_new = energy();
+    ++stats.iterations;
+    if (e_new < e) {
+      const bool converged = e - e_new < 1e-4 * e;
+      e = e_new;
+      lambda = std::max(lambda * 0.25, 1e-6);
+      if (converged) break;
+    } else {
+      restore();
+      lambda *= 8.0;
+      if (lambda > 1e4) break;
+    }
+  }
+  stats.final_energy = energy();
+  for (const auto& f : frames_)
+    for (const auto& p : f.points)
+      for (const auto& r : p.residuals) stats.residuals += r.inlier ? 1 : 0;
+  return stats;
+}
+
+WindowFrame WindowOptimizer::marginalize_frame(int index) {
+  const std::size_t n = frames_.size();
+  const auto m = static_cast<std::size_t>(index);
+  // Every frame the prior will touch keeps its Jacobians at the current estimate from now on.
+  for (auto& f : frames_) {
+    if (!f.first_estimate_fixed) {
+      f.first_estimate_fixed = true;
+      f.linearisation = f.state;
+    }
+  }
+  // The marginalised frame's points, Schur-complemented, plus the frame's own priors.
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  const std::vector<int> hosts{index};
+  linearize(H, b, true, 0.0, &hosts, false);
+  {
+    const WindowFrame& f = frames_[m];
+    const auto o = static_cast<Eigen::Index>(8 * m);
+    H(o + 6, o + 6) += f.affine_a_prior_weight;
+    b(o + 6) += f.affine_a_prior_weight * f.state.affine_a;
+    H(o + 7, o + 7) += f.affine_b_prior_weight;
+    b(o + 7) += f.affine_b_prior_weight * f.state.affine_b;
+    if (f.pose_prior_weight > 0.0) {
+      H.block<6, 6>(o, o).diagonal().array() += f.pose_prior_weight;
+      b.segment<6>(o) += f.pose_prior_weight * (f.state.T_cam_world * f.pose_prior.inverse()).log();
+    }
+  }
+  // Moved to the first estimates, where the prior lives.
+  Eigen::VectorXd delta(static_cast<Eigen::Index>(8 * n));
+  for (std::size_t i = 0; i < n; ++i) delta.segment<8>(static_cast<Eigen::Index>(8 * i)) = prior_delta(frames_[i]);
+  if (std::getenv("NIRSLAM_NO_PRIOR") == nullptr) {
+    H_prior_ += H;
+    b_prior_ += b - H * delta;
+  }
+
+  // Residuals of other points into the marginalised frame are dropped (DSO does the same).
+  const std::int64_t id = frames_[m].id;
+  for (auto& f : frames_) {
+    for (auto& p : f.points) {
+      p.residuals.erase(std::remove_if(p.residuals.begin(), p.residuals.end(),
+                                       [id](const PointResidual& r) { return r.target_id == id; }),
+                        p.residuals.end());
+    }
+  }
+
+  // Schur complement of the frame's block out of the prior.
+  const auto N = static_cast<Eigen::Index>(8 * n);
+  const auto om = static_cast<Eigen::Index>(8 * m);
+  std::vector<Eigen::Index> keep;
+  for (Eigen::Index i = 0; i < N; ++i)
+    if (i < om || i >= om + 8) keep.push_back(i);
+  const auto K = static_cast<Eigen::Index>(keep.size());
+  Eigen::MatrixXd H_kk(K, K);
+  Eigen::MatrixXd H_km(K, 8);
+  Eigen::VectorXd b_k(K);
+  for (Eigen::Index i = 0; i < K; ++i) {
+    b_k(i) = b_prior_(keep[static_cast<std::size_t>(i)]);
+    for (Eigen::Index j = 0; j < K; ++j) H_kk(i, j) = H_prior_(keep[static_cast<std::size_t>(i)], keep[static_cast<std::size_t>(j)]);
+    for (Eigen::Index j = 0; j < 8; ++j) H_km(i, j) = H_prior_(keep[static_cast<std::size_t>(i)], om + j);
+  }
+  const Matrix8d H_mm = H_prior_.block<8, 8>(om, om);
+  const Vector8d b_m = b_prior_.segment<8>(om);
+  // Pseudo-inverse: directions the prior does not constrain (gauge) carry no information.
+  Eigen::SelfAdjointEigenSolver<Matrix8d> eig(0.5 * (H_mm + H_mm.transpose()));
+  const double cutoff = std::max(1e-12, eig.eigenvalues().maxCoeff() * 1e-12);
+  Vector8d inv_values;
+  for (int i = 0; i < 8; ++i) inv_values[i] = eig.eigenvalues()[i] > cutoff ? 1.0 / eig.eigenvalues()[i] : 0.0;
+  const Matrix8d H_mm_inv = eig.eigenvectors() * inv_values.asDiagonal() * eig.eigenvectors().transpose();
+  H_prior_ = H_kk - H_km * H_mm_inv * H_km.transpose();
+  H_prior_ = 0.5 * (H_prior_ + H_prior_.transpose()).eval();
+  b_prior_ = b_k - H_km * H_mm_inv * b_m;
+
+  WindowFrame removed = std::move(frames_[m]);
+  frames_.erase(frames_.begin() + static_cast<std::ptrdiff_t>(m));
+  return removed;
+}
+
+bool WindowOptimizer::optimize_point(int host_index, WindowPoint& point, int iterations, int min_inliers) {
+  const auto h = static_cast<std::size_t>(host_index);
+  const WindowFrame& host = frames_[h];
+  const double k = options_.huber_threshold;
+  const double c2 = options_.gradient_weight_c * options_.gradient_weight_c;
+  const double outlier = options_.outlier_energy * kPatternSize;
+  struct Target {
+    Eigen::Matrix3d R;
+    Eigen::Vector3d t;
+    AffineTransfer affine;
+    const PyramidLevel* image;
+  };
+  std::vector<Target> targets;
+  for (const auto& res : point.residuals) {
+    const int ti = index_of(res.target_id);
+    const WindowFrame& f = frames_[static_cast<std::size_t>(ti)];
+    const SE3 T = f.state.T_cam_world * host.state.T_cam_world.inverse();
+    targets.push_back({T.rotation_matrix(), T.translation(),
+                       affine_transfer(host.state.affine_a, host.state.affine_b, host.exposure, f.state.affine_a,
+                                       f.state.affine_b, f.exposure),
+                       &f.pyramid->level(0)});
+  }
+  // Energy, gradient and Hessian in rho; counts inlier residuals.
+  auto evaluate = [&](double rho, double& H, double& g, int& inliers) {
+    H = 0.0;
+    g = 0.0;
+    inliers = 0;
+    double total = 0.0;
+    for (const Target& tg : targets) {
+      double e = 0.0;
+      double H_r = 0.0;
+      double g_r = 0.0;
+      bool in_view = true;
+      for (int i = 0; i < kPatternSize; ++i) {
+        const auto& o = kPattern[static_cast<std::size_t>(i)];
+        const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(o[0], o[1]);
+        Warp w;
+        if (!warp_pixel(camera_, tg.R, tg.t, px, rho, w) || !camera_.inside(w.pixel.x(), w.pixel.y(), 1.0)) {
+          in_view = false;
+          break;
+        }
+        const Eigen::Vector3f s = tg.image->interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
+        const double r = s[0] - tg.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - tg.affine.b_host) -
+                         tg.affine.b_target;
+        const double W = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm())) * huber_weight(r, k);
+        const double hw = huber_weight(r, k);
+        e += W / hw * hw * r * r * (2.0 - hw);
+        Matrix26d d_pose;
+        Eigen::Vector2d d_rho;
+        warp_jacobians(camera_, w, tg.t, d_pose, d_rho);
+        const double J = s.tail<2>().cast<double>().dot(d_rho);
+        H_r += W * J * J;
+        g_r += W * J * r;
+      }
+      if (!in_view || e > outlier) {
+        total += outlier;
+        continue;
+      }
+      ++inliers;
+      total += e;
+      H += H_r;
+      g += g_r;
+    }
+    return total;
+  };
+  double H = 0.0;
+  double g = 0.0;
+  int inliers = 0;
+  double energy = evaluate(point.inverse_depth, H, g, inliers);
+  double lambda = 0.1;
+  for (int it = 0; it < iterations && H > 0.0; ++it) {
+    const double rho_new = std::clamp(point.inverse_depth - g / (H * (1.0 + lambda)), 1e-4, 1e3);
+    double H_new = 0.0;
+    double g_new = 0.0;
+    int inliers_new = 0;
+    const double energy_new = evaluate(rho_new, H_new, g_new, inliers_new);
+    if (energy_new < energy) {
+      point.inverse_depth = rho_new;
+      energy = energy_new;
+      H = H_new;
+      g = g_new;
+      inliers = inliers_new;
+      lambda *= 0.5;
+    } else {
+      lambda *= 5.0;
+    }
+  }
+  return inliers >= min_inliers;
+}
+
+std::vector<std::pair<std::int64_t, WindowPoint>> WindowOptimizer::remove_bad_points(int min_inliers,
+                                                                                     bool out_of_newest) {
+  std::vector<std::pair<std::int64_t, WindowPoint>> removed;
+  if (frames_.empty()) return removed;
+  const std::int64_t newest = frames_.back().id;
+  for (auto& f : frames_) {
+    auto keep_end = std::stable_partition(f.points.begin(), f.points.end(), [&](const WindowPoint& p) {
+      int inliers = 0;
+      bool seen_by_newest = f.id == newest;
+      for (const auto& r : p.residuals) {
+        inliers += r.inlier ? 1 : 0;
+        if (r.target_id == newest && r.inlier) seen_by_newest = true;
+      }
+      if (out_of_newest && !seen_by_newest) return false;
+      return inliers >= min_inliers || p.residuals.empty();
+    });
+    for (auto it = keep_end; it != f.points.end(); ++it) removed.emplace_back(f.id, std::move(*it));
+    f.points.erase(keep_end, f.points.end());
+  }
+  return removed;
+}
+
+}  // namespace nirslam::odometry

@@ -193,6 +193,8 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
   e->keyframes = step.keyframes;
   e->points = step.points;
   e->backend_ms = last_backend_ms_;
+  e->grey_low = step.ok && step.updated ? step.grey_low : previous->grey_low;
+  e->grey_high = step.ok && step.updated ? step.grey_high : previous->grey_high;
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     e->keyframes_dropped = dropped_;

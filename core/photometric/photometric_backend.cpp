@@ -51,6 +51,36 @@ bool vignette_positive(const Eigen::Vector3d& v) {
   return true;
 }
 
+double f_slope(const Eigen::Vector4d& c, double u) {
+  Eigen::Vector4d h, dh;
+  response_basis_in_sqrt_irradiance(u, h, dh);
+  return 1.0 + c.dot(dh);
+}
+
+// The basis derivative at 256 points of u (cell midpoints): f'(u) = 1 + c . dh there, so the
+// monotonicity test of a trial step is 256 dot products.
+struct MonotonicGrid {
+  std::vector<Eigen::Vector4d> dh;
+};
+const MonotonicGrid& monotonic_grid() {
+  static const MonotonicGrid grid = [] {
+    MonotonicGrid g;
+    constexpr int kPoints = 256;
+    g.dh.resize(kPoints);
+    for (int i = 0; i < kPoints; ++i) {
+      Eigen::Vector4d h;
+      response_basis_in_sqrt_irradiance((i + 0.5) / kPoints, h, g.dh[static_cast<std::size_t>(i)]);
+    }
+    return g;
+  }();
+  return grid;
+}
+bool monotonic_on_grid(const Eigen::Vector4d& c) {
+  for (const Eigen::Vector4d& dh : monotonic_grid().dh)
+    if (!(1.0 + c.dot(dh) > 0.0)) return false;
+  return true;
+}
+
 }  // namespace
 
 InverseResponse::InverseResponse(const Eigen::Vector4d& c) : c_(c), table_(kInverseTableSize) {
@@ -125,6 +155,8 @@ void PhotometricBackend::reset() {
   vignette_ = options_.initial_vignette;
   keyframes_.clear();
   added_ = 0;
+  updates_since_multi_start_ = 0;
+  response_fitted_ = false;
 }
 
 void PhotometricBackend::add_keyframe(PhotometricKeyframe keyframe) {
@@ -195,38 +227,46 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
   }
 }
 
-void PhotometricBackend::initialise_radiances(const InverseResponse& inverse, const Eigen::Vector3d& v,
-                                              const std::vector<double>& exposures, std::vector<Point>& points) const {
-  // The weighted least-squares radiance for fixed globals: with weight (eV)^2 on G/(eV) - L,
-  // L = sum(eV G) / sum((eV)^2).
-  for (Point& p : points) {
+void PhotometricBackend::update_u(State& state) const {
+  const InverseResponse inverse(state.c);
+  state.u.resize(observations_.size());
+  for (std::size_t i = 0; i < observations_.size(); ++i) state.u[i] = inverse.sqrt_irradiance(observations_[i].grey / 255.0);
+}
+
+void PhotometricBackend::initialise_radiances(State& state) const {
+  // The weighted least-squares radiance for fixed globals: with weight (eVk)^2 on G/(eV) - L,
+  // L = sum(w k^2 eV G) / sum(w k^2 (eV)^2).
+  state.radiance.resize(points_.size());
+  for (std::size_t pi = 0; pi < points_.size(); ++pi) {
+    const Point& p = points_[pi];
     double num = 0.0, den = 0.0;
     for (int i = p.begin; i < p.end; ++i) {
       const Observation& o = observations_[static_cast<std::size_t>(i)];
-      double G = 0.0, k = 0.0;
-      photometric_residual(inverse, v, 1.0, 0.0, o.grey, o.radius, nullptr, &G, &k);
-      const double eV = exposures[static_cast<std::size_t>(o.keyframe)] * vignette_at(v, o.radius);
+      const double u = state.u[static_cast<std::size_t>(i)];
+      const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
+      const double G = 255.0 * u * u;
+      const double eV = state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius);
       num += o.gradient_weight * k * k * eV * G;
       den += o.gradient_weight * k * k * eV * eV;
     }
-    p.radiance = den > 0.0 ? num / den : 0.0;
+    state.radiance[pi] = den > 0.0 ? num / den : 0.0;
   }
 }
 
-double PhotometricBackend::evaluate_cost(const InverseResponse& inverse, const Eigen::Vector3d& v,
-                                         const std::vector<double>& exposures, const std::vector<Point>& points,
-                                         double delta) const {
-  // Scaled residual s = r e V / e_scale = (G - e V L) / e_scale; exposures are pre-divided by e_scale.
+double PhotometricBackend::data_cost(const State& state, double delta) const {
+  // Scaled residual s = (G - e V L) k (grey levels), k = dI/dG; exposures pre-divided by e_scale.
   double cost = 0.0;
-  for (const Point& p : points)
+  for (std::size_t pi = 0; pi < points_.size(); ++pi) {
+    const Point& p = points_[pi];
+    const double L = state.radiance[pi];
     for (int i = p.begin; i < p.end; ++i) {
       const Observation& o = observations_[static_cast<std::size_t>(i)];
-      const double e = exposures[static_cast<std::size_t>(o.keyframe)];
-      double G = 0.0, k = 0.0;
-      const double r = photometric_residual(inverse, v, e, p.radiance, o.grey, o.radius, nullptr, &G, &k);
-      const double s = r * e * vignette_at(v, o.radius) * k;
+      const double u = state.u[static_cast<std::size_t>(i)];
+      const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
+      const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * L) * k;
       cost += o.gradient_weight * huber_cost(s, delta);
     }
+  }
   return cost;
 }
 
@@ -251,11 +291,25 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
                   std::to_string(options_.min_points) + "); last estimate kept";
     return step;
   }
+  {
+    std::vector<double> greys;
+    greys.reserve(observations_.size());
+    for (const Observation& o : observations_) greys.push_back(o.grey);
+    const auto lo = greys.begin() + static_cast<std::ptrdiff_t>(greys.size() / 100);
+    const auto hi = greys.begin() + static_cast<std::ptrdiff_t>(greys.size() - 1 - greys.size() / 100);
+    std::nth_element(greys.begin(), lo, greys.end());
+    step.grey_low = *lo;
+    std::nth_element(greys.begin(), hi, greys.end());
+    step.grey_high = *hi;
+  }
 
   // Exposures, divided by their median so the numbers stay near 1 whatever the unit; free or held.
   const int K = step.keyframes;
+  const auto keyframe = [&](int w) -> const PhotometricKeyframe& {
+    return keyframes_[static_cast<std::size_t>(window_[static_cast<std::size_t>(w)])];
+  };
   std::vector<double> exposure(static_cast<std::size_t>(K));
-  for (int w = 0; w < K; ++w) exposure[static_cast<std::size_t>(w)] = keyframes_[static_cast<std::size_t>(window_[static_cast<std::size_t>(w)])].exposure;
+  for (int w = 0; w < K; ++w) exposure[static_cast<std::size_t>(w)] = keyframe(w).exposure;
   std::vector<double> sorted = exposure;
   const double e_scale = median_in_place(sorted);
   const double e_min = *std::min_element(exposure.begin(), exposure.end());
@@ -264,10 +318,9 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   std::vector<int> free_index(static_cast<std::size_t>(K), -1);
   int globals = 7;
   bool any_fixed = false;
-  for (int w = 0; w < K; ++w)
-    any_fixed |= options_.trust_known_exposures && keyframes_[static_cast<std::size_t>(window_[static_cast<std::size_t>(w)])].exposure_known;
+  for (int w = 0; w < K; ++w) any_fixed |= options_.trust_known_exposures && keyframe(w).exposure_known;
   for (int w = 0; w < K; ++w) {
-    const bool known = options_.trust_known_exposures && keyframes_[static_cast<std::size_t>(window_[static_cast<std::size_t>(w)])].exposure_known;
+    const bool known = options_.trust_known_exposures && keyframe(w).exposure_known;
     // Without any reported exposure, the oldest keyframe of the window is the gauge.
     if (known || (!any_fixed && w == 0)) continue;
     free_index[static_cast<std::size_t>(w)] = globals++;
@@ -301,206 +354,298 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     return step;
   }
 
-  Eigen::Vector4d c = response_.coefficients();
-  Eigen::Vector3d v = vignette_.v;
   const Eigen::Vector4d c_prior = options_.initial_response.coefficients();
-  InverseResponse inverse(c);
-  initialise_radiances(inverse, v, exposure, points_);
+  const double nobs = static_cast<double>(observations_.size());
+  const double prior_weight = options_.coefficient_prior_weight * nobs;
+  const double monotonic_weight = options_.monotonic_penalty_weight * nobs;
+  const MonotonicGrid& grid = monotonic_grid();
+
+  State state;
+  state.c = response_.coefficients();
+  state.v = vignette_.v;
+  state.exposure = exposure;
+  update_u(state);
+  initialise_radiances(state);
 
   // Huber width from the robust spread of the scaled residuals at the start.
   double delta = 1.0;
   {
     std::vector<double> abs_s;
     abs_s.reserve(observations_.size());
-    for (const Point& p : points_)
-      for (int i = p.begin; i < p.end; ++i) {
+    for (std::size_t pi = 0; pi < points_.size(); ++pi)
+      for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
         const Observation& o = observations_[static_cast<std::size_t>(i)];
-        double G = 0.0, k = 0.0;
-        const double r = photometric_residual(inverse, v, exposure[static_cast<std::size_t>(o.keyframe)], p.radiance,
-                                              o.grey, o.radius, nullptr, &G, &k);
-        abs_s.push_back(std::abs(r * exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(v, o.radius) * k));
+        const double u = state.u[static_cast<std::size_t>(i)];
+        const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
+        abs_s.push_back(std::abs((255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] *
+                                                      vignette_at(state.v, o.radius) * state.radiance[pi]) * k));
       }
     delta = options_.huber_k * std::max(1.4826 * median_in_place(abs_s), 0.5);
   }
-  const double nobs = static_cast<double>(observations_.size());
-  const double prior_weight = options_.coefficient_prior_weight * nobs;
-  const auto total_cost = [&](const InverseResponse& inv, const Eigen::Vector4d& cc, const Eigen::Vector3d& vv,
-                              const std::vector<double>& ee, const std::vector<Point>& pp) {
-    return evaluate_cost(inv, vv, ee, pp, delta) + prior_weight * (cc - c_prior).squaredNorm();
+  const auto regulariser = [&](const Eigen::Vector4d& c) {
+    if (!step.response_estimated) return 0.0;
+    double penalty = prior_weight * (c - c_prior).squaredNorm();
+    for (const Eigen::Vector4d& dh : grid.dh) {
+      const double shortfall = options_.monotonic_margin - (1.0 + c.dot(dh));
+      if (shortfall > 0.0) penalty += monotonic_weight * shortfall * shortfall;
+    }
+    return penalty;
   };
-  double cost = total_cost(inverse, c, v, exposure, points_);
-  if (!std::isfinite(cost)) {
+  const auto total_cost = [&](const State& st) { return data_cost(st, delta) + regulariser(st.c); };
+  state.cost = total_cost(state);
+  if (!std::isfinite(state.cost)) {
     step.ok = false;
     step.status = "cost not finite at the start; last estimate kept";
     return step;
   }
 
   Eigen::MatrixXd H(globals, globals), S(globals, globals);
-  Eigen::VectorXd b(globals), rhs(globals), dx(globals);
+  Eigen::VectorXd b(globals), rhs(globals), dx(globals), dx_try(globals);
   std::vector<double> h_pp(points_.size()), b_p(points_.size());
   std::vector<Eigen::Matrix<double, 7, 1>> h_pg(points_.size());
   std::vector<double> h_pe(observations_.size());  // coupling of each observation's point with its exposure
-  std::vector<Point> trial_points = points_;
-  std::vector<double> trial_exposure = exposure;
   std::vector<int> index;
   std::vector<double> value;
-  PhotometricJacobian J;
-  double lambda = 1e-3;
-  int iteration = 0;
-  for (; iteration < max_iterations; ++iteration) {
-    H.setZero();
-    b.setZero();
-    for (std::size_t pi = 0; pi < points_.size(); ++pi) {
-      const Point& p = points_[pi];
-      double hpp = 0.0, bp = 0.0;
-      Eigen::Matrix<double, 7, 1> hpg = Eigen::Matrix<double, 7, 1>::Zero();
-      for (int i = p.begin; i < p.end; ++i) {
-        const Observation& o = observations_[static_cast<std::size_t>(i)];
-        const double e = exposure[static_cast<std::size_t>(o.keyframe)];
-        double G = 0.0, k = 0.0;
-        const double r = photometric_residual(inverse, v, e, p.radiance, o.grey, o.radius, &J, &G, &k);
-        const double eVk = e * vignette_at(v, o.radius) * k;
-        const double s = r * eVk;
-        const double w = o.gradient_weight * eVk * eVk * huber_weight(s, delta);
-        Eigen::Matrix<double, 7, 1> jg = J.head<7>();
-        if (!step.response_estimated) jg.head<4>().setZero();
-        if (!step.vignette_estimated) jg.tail<3>().setZero();
-        H.topLeftCorner<7, 7>().noalias() += w * jg * jg.transpose();
-        b.head<7>() += (w * r) * jg;
-        const int fe = free_index[static_cast<std::size_t>(o.keyframe)];
-        if (fe >= 0) {
-          H.block<7, 1>(0, fe) += (w * J[7]) * jg;
-          H(fe, fe) += w * J[7] * J[7];
-          b[fe] += w * r * J[7];
-        }
-        // dr/dL = -1.
-        hpp += w;
-        bp -= w * r;
-        hpg -= w * jg;
-        h_pe[static_cast<std::size_t>(i)] = fe >= 0 ? -w * J[7] : 0.0;
-      }
-      h_pp[pi] = hpp;
-      b_p[pi] = bp;
-      h_pg[pi] = hpg;
-    }
-    for (int g = 7; g < globals; ++g) H.block(g, 0, 1, 7) = H.block(0, g, 7, 1).transpose();
-    if (step.response_estimated) {
-      H.topLeftCorner<4, 4>().diagonal().array() += prior_weight;
-      b.head<4>() += prior_weight * (c - c_prior);
-    }
+  State trial;
+  int total_iterations = 0;
 
-    bool accepted = false;
-    double new_cost = cost;
-    Eigen::Vector4d trial_c = c;
-    Eigen::Vector3d trial_v = v;
-    for (int attempt = 0; attempt < 8 && !accepted; ++attempt) {
-      S = H;
-      for (int g = 0; g < globals; ++g) S(g, g) = H(g, g) > 0.0 ? H(g, g) * (1.0 + lambda) : 1.0;
-      rhs = -b;
-      // Schur complement over the radiances: S -= h_pg h_pg^T / h_pp, over each point's few
-      // non-zero entries (c, v and the exposures of its keyframes).
+  // Levenberg-Marquardt from `st` for up to `iterations`; returns whether it converged.
+  const auto run_lm = [&](State& st, int iterations) {
+    double lambda = 1e-3;
+    for (int iteration = 0; iteration < iterations; ++iteration) {
+      H.setZero();
+      b.setZero();
       for (std::size_t pi = 0; pi < points_.size(); ++pi) {
         const Point& p = points_[pi];
-        const double d = h_pp[pi] * (1.0 + lambda) + 1e-12;
-        index.assign({0, 1, 2, 3, 4, 5, 6});
-        value.assign(h_pg[pi].data(), h_pg[pi].data() + 7);
+        const double L = st.radiance[pi];
+        double hpp = 0.0, bp = 0.0;
+        Eigen::Matrix<double, 7, 1> hpg = Eigen::Matrix<double, 7, 1>::Zero();
         for (int i = p.begin; i < p.end; ++i) {
-          const int fe = free_index[static_cast<std::size_t>(observations_[static_cast<std::size_t>(i)].keyframe)];
+          const Observation& o = observations_[static_cast<std::size_t>(i)];
+          const double e = st.exposure[static_cast<std::size_t>(o.keyframe)];
+          const double u = st.u[static_cast<std::size_t>(i)];
+          Eigen::Vector4d h, dh;
+          response_basis_in_sqrt_irradiance(u, h, dh);
+          const double slope = 1.0 + st.c.dot(dh);
+          const double k = slope / (2.0 * std::max(u, 1e-6));
+          const double G = 255.0 * u * u;
+          const double r2 = o.radius * o.radius;
+          const double V = vignette_at(st.v, o.radius);
+          const double eV = e * V;
+          const double r = G / eV - L;
+          const double eVk = eV * k;
+          const double s = r * eVk;
+          const double w = o.gradient_weight * eVk * eVk * huber_weight(s, delta);
+          Eigen::Matrix<double, 7, 1> jg;
+          if (step.response_estimated)
+            jg.head<4>() = (-255.0 * 2.0 * u / (slope * eV)) * h;
+          else
+            jg.head<4>().setZero();
+          if (step.vignette_estimated) {
+            const double dV = -G / (eV * V);
+            jg[4] = dV * r2;
+            jg[5] = dV * r2 * r2;
+            jg[6] = dV * r2 * r2 * r2;
+          } else {
+            jg.tail<3>().setZero();
+          }
+          const double je = -G / (eV * e);
+          H.topLeftCorner<7, 7>().noalias() += w * jg * jg.transpose();
+          b.head<7>() += (w * r) * jg;
+          const int fe = free_index[static_cast<std::size_t>(o.keyframe)];
           if (fe >= 0) {
-            index.push_back(fe);
-            value.push_back(h_pe[static_cast<std::size_t>(i)]);
+            H.block<7, 1>(0, fe) += (w * je) * jg;
+            H(fe, fe) += w * je * je;
+            b[fe] += w * r * je;
+          }
+          // dr/dL = -1.
+          hpp += w;
+          bp -= w * r;
+          hpg -= w * jg;
+          h_pe[static_cast<std::size_t>(i)] = fe >= 0 ? -w * je : 0.0;
+        }
+        h_pp[pi] = hpp;
+        b_p[pi] = bp;
+        h_pg[pi] = hpg;
+      }
+      for (int g = 7; g < globals; ++g) H.block(g, 0, 1, 7) = H.block(0, g, 7, 1).transpose();
+      if (step.response_estimated) {
+        H.topLeftCorner<4, 4>().diagonal().array() += prior_weight;
+        b.head<4>() += prior_weight * (st.c - c_prior);
+        for (const Eigen::Vector4d& dh : grid.dh) {
+          const double shortfall = options_.monotonic_margin - (1.0 + st.c.dot(dh));
+          if (shortfall > -options_.monotonic_margin) {  // active or nearly: keep the model quadratic
+            H.topLeftCorner<4, 4>().noalias() += monotonic_weight * dh * dh.transpose();
+            if (shortfall > 0.0) b.head<4>() -= monotonic_weight * shortfall * dh;
           }
         }
-        for (std::size_t a = 0; a < index.size(); ++a) {
-          rhs[index[a]] += value[a] * b_p[pi] / d;
-          for (std::size_t bb = 0; bb < index.size(); ++bb) S(index[a], index[bb]) -= value[a] * value[bb] / d;
+      }
+
+      bool accepted = false;
+      for (int attempt = 0; attempt < 8 && !accepted; ++attempt) {
+        S = H;
+        for (int g = 0; g < globals; ++g) S(g, g) = H(g, g) > 0.0 ? H(g, g) * (1.0 + lambda) : 1.0;
+        rhs = -b;
+        // Schur complement over the radiances: S -= h_pg h_pg^T / h_pp, over each point's few
+        // non-zero entries (c, v and the exposures of its keyframes).
+        for (std::size_t pi = 0; pi < points_.size(); ++pi) {
+          const Point& p = points_[pi];
+          const double d = h_pp[pi] * (1.0 + lambda) + 1e-12;
+          index.assign({0, 1, 2, 3, 4, 5, 6});
+          value.assign(h_pg[pi].data(), h_pg[pi].data() + 7);
+          for (int i = p.begin; i < p.end; ++i) {
+            const int fe = free_index[static_cast<std::size_t>(observations_[static_cast<std::size_t>(i)].keyframe)];
+            if (fe >= 0) {
+              index.push_back(fe);
+              value.push_back(h_pe[static_cast<std::size_t>(i)]);
+            }
+          }
+          for (std::size_t a = 0; a < index.size(); ++a) {
+            const double va = value[a] / d;
+            rhs[index[a]] += va * b_p[pi];
+            for (std::size_t bb = 0; bb < index.size(); ++bb) S(index[a], index[bb]) -= va * value[bb];
+          }
+        }
+        dx = S.ldlt().solve(rhs);
+        if (!dx.allFinite()) {
+          lambda *= 10.0;
+          continue;
+        }
+        // Backtracking: an invalid step (f not monotonic, V not positive, e <= 0) is halved first.
+        bool valid = false;
+        dx_try = dx;
+        for (int half = 0; half < 5 && !valid; ++half, dx_try *= 0.5) {
+          trial.c = st.c + dx_try.head<4>();
+          trial.v = st.v + dx_try.segment<3>(4);
+          trial.exposure.resize(st.exposure.size());
+          valid = true;
+          for (int w = 0; w < K; ++w) {
+            const int fe = free_index[static_cast<std::size_t>(w)];
+            trial.exposure[static_cast<std::size_t>(w)] = st.exposure[static_cast<std::size_t>(w)] + (fe >= 0 ? dx_try[fe] : 0.0);
+            valid &= trial.exposure[static_cast<std::size_t>(w)] > 0.0;
+          }
+          valid = valid && (!step.response_estimated || monotonic_on_grid(trial.c)) &&
+                  (!step.vignette_estimated || vignette_positive(trial.v));
+          if (valid) break;
+        }
+        if (!valid) {
+          lambda *= 4.0;
+          continue;
+        }
+        trial.radiance.resize(points_.size());
+        for (std::size_t pi = 0; pi < points_.size(); ++pi) {
+          const Point& p = points_[pi];
+          const double d = h_pp[pi] * (1.0 + lambda) + 1e-12;
+          double coupling = h_pg[pi].dot(dx_try.head<7>());
+          for (int i = p.begin; i < p.end; ++i) {
+            const int fe = free_index[static_cast<std::size_t>(observations_[static_cast<std::size_t>(i)].keyframe)];
+            if (fe >= 0) coupling += h_pe[static_cast<std::size_t>(i)] * dx_try[fe];
+          }
+          trial.radiance[pi] = st.radiance[pi] - (b_p[pi] + coupling) / d;
+        }
+        if (step.response_estimated)
+          update_u(trial);
+        else
+          trial.u = st.u;  // f held: u unchanged
+        trial.cost = total_cost(trial);
+        if (std::isfinite(trial.cost) && trial.cost < st.cost) {
+          accepted = true;
+          const double decrease = st.cost - trial.cost;
+          std::swap(st, trial);
+          lambda = std::max(lambda / 3.0, 1e-9);
+          ++total_iterations;
+          if (decrease < options_.convergence_relative * st.cost) return true;
+        } else {
+          lambda *= 4.0;
         }
       }
-      dx = S.ldlt().solve(rhs);
-      if (!dx.allFinite()) {
-        lambda *= 10.0;
+      if (!accepted) return true;  // no step lowers the cost any more
+    }
+    return false;
+  };
+
+  // Multi-start (see the header): probe a few starting responses, continue from the cheapest.
+  int remaining = max_iterations;
+  if (step.response_estimated && options_.multi_start &&
+      (all_stored || !response_fitted_ || ++updates_since_multi_start_ >= options_.multi_start_every)) {
+    updates_since_multi_start_ = 0;
+    step.multi_started = true;
+    std::vector<Eigen::Vector4d> starts{state.c, c_prior, Eigen::Vector4d(-1.0, 0.0, 0.0, 0.0), Eigen::Vector4d::Zero()};
+    const int probe = std::min(options_.multi_start_probe_iterations, max_iterations);
+    State best = state;
+    run_lm(best, probe);
+    // Each start with the current vignette and (when V is estimated) the initial one.
+    for (std::size_t s = 0; s < 2 * starts.size(); ++s) {
+      const std::size_t si = s / 2;
+      const bool initial_v = s % 2 == 1;
+      if (s == 0 || (initial_v && (!step.vignette_estimated || (options_.initial_vignette.v - state.v).norm() < 1e-9)))
         continue;
-      }
-      trial_c = c + dx.head<4>();
-      trial_v = v + dx.segment<3>(4);
-      bool valid = true;
-      for (int w = 0; w < K; ++w) {
-        const int fe = free_index[static_cast<std::size_t>(w)];
-        trial_exposure[static_cast<std::size_t>(w)] = exposure[static_cast<std::size_t>(w)] + (fe >= 0 ? dx[fe] : 0.0);
-        valid &= trial_exposure[static_cast<std::size_t>(w)] > 0.0;
-      }
-      valid = valid && (!step.response_estimated || ResponseModel(trial_c).is_monotonic()) &&
-              (!step.vignette_estimated || vignette_positive(trial_v));
-      if (!valid) {
-        lambda *= 4.0;
-        continue;
-      }
-      for (std::size_t pi = 0; pi < points_.size(); ++pi) {
-        const Point& p = points_[pi];
-        const double d = h_pp[pi] * (1.0 + lambda) + 1e-12;
-        double coupling = h_pg[pi].dot(dx.head<7>());
-        for (int i = p.begin; i < p.end; ++i) {
-          const int fe = free_index[static_cast<std::size_t>(observations_[static_cast<std::size_t>(i)].keyframe)];
-          if (fe >= 0) coupling += h_pe[static_cast<std::size_t>(i)] * dx[fe];
-        }
-        trial_points[pi].radiance = p.radiance - (b_p[pi] + coupling) / d;
-      }
-      const InverseResponse trial_inverse(trial_c);
-      new_cost = total_cost(trial_inverse, trial_c, trial_v, trial_exposure, trial_points);
-      if (std::isfinite(new_cost) && new_cost < cost) {
-        accepted = true;
-        c = trial_c;
-        v = trial_v;
-        inverse = trial_inverse;
-        exposure.swap(trial_exposure);
-        points_.swap(trial_points);
-        lambda = std::max(lambda / 3.0, 1e-9);
-      } else {
-        lambda *= 4.0;
-      }
+      bool duplicate = false;
+      for (std::size_t t = 0; t < si; ++t) duplicate |= (starts[si] - starts[t]).norm() < 1e-6;
+      if (duplicate || !monotonic_on_grid(starts[si])) continue;
+      State candidate;
+      candidate.c = starts[si];
+      candidate.v = initial_v ? options_.initial_vignette.v : state.v;
+      candidate.exposure = state.exposure;
+      update_u(candidate);
+      initialise_radiances(candidate);
+      candidate.cost = total_cost(candidate);
+      if (!std::isfinite(candidate.cost)) continue;
+      run_lm(candidate, probe);
+      if (candidate.cost < best.cost) std::swap(best, candidate);
     }
-    if (!accepted) {
-      step.converged = true;  // no step lowers the cost any more
-      break;
-    }
-    const double decrease = cost - new_cost;
-    cost = new_cost;
-    if (decrease < options_.convergence_relative * cost) {
-      step.converged = true;
-      ++iteration;
-      break;
-    }
+    std::swap(state, best);
+    remaining = std::max(0, max_iterations - probe);
   }
-  step.iterations = iteration;
-  step.cost = cost / nobs;
-  if (!c.allFinite() || !v.allFinite()) {
+  step.converged = remaining == 0 ? false : run_lm(state, remaining);
+  step.iterations = total_iterations;
+  step.cost = state.cost / nobs;
+  if (!state.c.allFinite() || !state.v.allFinite()) {
     step.ok = false;
     step.status = "optimisation diverged (not finite); last estimate kept";
     return step;
   }
-  step.updated = iteration > 0;
-  response_ = ResponseModel(c);
-  vignette_.v = v;
+  if (!ResponseModel(state.c).is_monotonic()) {
+    // Monotonic at the 256 test points but not on the finer check the model's users apply (a
+    // flat stretch): back off towards the last published response, which is monotonic.
+    const Eigen::Vector4d previous = response_.coefficients();
+    Eigen::Vector4d c = previous;
+    for (double t = 0.5; t > 1e-3; t *= 0.5) {
+      const Eigen::Vector4d trial_c = previous + t * (state.c - previous);
+      if (ResponseModel(trial_c).is_monotonic()) {
+        c = trial_c;
+        break;
+      }
+    }
+    state.c = c;
+    update_u(state);
+    initialise_radiances(state);
+    state.cost = total_cost(state);
+  }
+  step.updated = total_iterations > 0;
+  if (step.updated && step.response_estimated) response_fitted_ = true;
+  response_ = ResponseModel(state.c);
+  vignette_.v = state.v;
   for (int w = 0; w < K; ++w)
-    keyframes_[static_cast<std::size_t>(window_[static_cast<std::size_t>(w)])].exposure = exposure[static_cast<std::size_t>(w)] * e_scale;
+    keyframes_[static_cast<std::size_t>(window_[static_cast<std::size_t>(w)])].exposure = state.exposure[static_cast<std::size_t>(w)] * e_scale;
   {
     double squared = 0.0;
     std::size_t inliers = 0;
-    for (const Point& p : points_)
-      for (int i = p.begin; i < p.end; ++i) {
+    for (std::size_t pi = 0; pi < points_.size(); ++pi)
+      for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
         const Observation& o = observations_[static_cast<std::size_t>(i)];
-        double G = 0.0, k = 0.0;
-        const double r = photometric_residual(inverse, v, exposure[static_cast<std::size_t>(o.keyframe)], p.radiance,
-                                              o.grey, o.radius, nullptr, &G, &k);
-        const double s = r * exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(v, o.radius) * k;
+        const double u = state.u[static_cast<std::size_t>(i)];
+        const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
+        const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] *
+                                              vignette_at(state.v, o.radius) * state.radiance[pi]) * k;
         if (std::abs(s) <= delta) squared += s * s, ++inliers;
       }
     step.residual_rms = inliers ? std::sqrt(squared / static_cast<double>(inliers)) : 0.0;
   }
-  char text[160];
-  std::snprintf(text, sizeof text, "%s after %d iterations (%d keyframes, %d points, residual %.2f grey levels)",
-                step.converged ? "converged" : "iterating", step.iterations, step.keyframes, step.points,
-                step.residual_rms);
+  char text[200];
+  std::snprintf(text, sizeof text, "%s after %d iterations%s (%d keyframes, %d points, residual %.2f grey levels)",
+                step.converged ? "converged" : "iterating", step.iterations, step.multi_started ? " (multi-start)" : "",
+                step.keyframes, step.points, step.residual_rms);
   step.status = text;
   if (!held.empty()) step.status += "; " + held;
   return step;

@@ -64,6 +64,8 @@ struct PhotometricEstimate {  // immutable once published
   std::string ambiguity_detail;  // e.g. "exposure times reported by the source"
   std::string status;            // human-readable convergence status / why nothing yet
   double backend_ms = 0.0;       // wall time of the optimisation that produced this estimate
+  double grey_low = 0.0;         // 1st / 99th percentile of the grey values the fit saw: the
+  double grey_high = 0.0;        // response is extrapolated outside this range
   std::vector<std::pair<std::int64_t, double>> keyframe_exposures;  // frame index -> exposure (back end)
 };
 

@@ -32,7 +32,18 @@
 // paper's Eq. 2-7 plus the coupling term H_pg dx of the exact block elimination (the paper
 // alternates the two updates; eliminating converges in far fewer iterations because exposure and
 // radiance are strongly coupled). A step is accepted only if it lowers the cost and keeps f
-// strictly monotonic and V positive (the response stays invertible).
+// strictly monotonic (f' > 0 at 256 points of u, a dot product each with a tabulated basis
+// derivative) and V positive; an invalid step is halved (backtracking) before lambda grows, and a
+// soft penalty on f' below options.monotonic_margin lets the solver slide along the monotonicity
+// boundary instead of stopping at it (a linear response, f' = 2u in u, lies on that boundary).
+//
+// Multi-start: the cost has local minima in c (a start at gamma stalls ~50 grey levels from a
+// linear truth). At the first update that estimates f, every multi_start_every-th update after
+// it, and in the batch optimisation, the solver probes a few starts (the current estimate, the
+// initial response, the linear response f(X) = X and the basis mean sqrt(X), each with the current
+// and with the initial vignette), each with its own radiances and a few LM iterations, and
+// continues from the cheapest. (The linear start is the exact linear preset; the other presets
+// are not among the starts.)
 //
 // Ambiguity: with exposures fixed (reported by the source), f, V and L are determined. Otherwise
 // the reference keyframe's exposure (the oldest in the window) is held, which fixes the scale,
@@ -94,6 +105,11 @@ struct PhotometricBackendOptions {
   double min_exposure_ratio = 1.15;   // max/min exposure in the window below which f is not estimated
   double min_radius_span = 0.1;       // V is estimated when min_points / 2 points span this range of radii
   double convergence_relative = 1e-6; // stop when the cost drops by less than this fraction
+  double monotonic_margin = 0.01;     // f'(u) below this (at 256 points) is penalised ...
+  double monotonic_penalty_weight = 100.0;  // ... with this weight per observation
+  bool multi_start = true;            // probe several starting responses (see above)
+  int multi_start_every = 20;         // online updates between two multi-starts
+  int multi_start_probe_iterations = 3;
 };
 
 struct BackendStep {
@@ -108,6 +124,9 @@ struct BackendStep {
   int observations = 0;
   bool response_estimated = false;
   bool vignette_estimated = false;
+  bool multi_started = false;  // several starting responses were probed
+  double grey_low = 0.0;     // 1st and 99th percentile of the observed grey values: f is
+  double grey_high = 0.0;    // constrained by data only in between (extrapolated outside)
   std::string status;        // what happened, and why not when nothing was estimated
 };
 
@@ -131,7 +150,6 @@ public:
 private:
   struct Point {
     int begin = 0, end = 0;  // into observations_
-    double radiance = 0.0;
   };
   struct Observation {
     int keyframe = 0;        // into the window's keyframe list
@@ -139,12 +157,19 @@ private:
     double radius = 0.0;
     double gradient_weight = 1.0;
   };
+  // One candidate solution: the globals, the radiances and u = sqrt(f^-1(grey)) per observation.
+  struct State {
+    Eigen::Vector4d c = Eigen::Vector4d::Zero();
+    Eigen::Vector3d v = Eigen::Vector3d::Zero();
+    std::vector<double> exposure;  // window keyframes, divided by the median
+    std::vector<double> radiance;  // per point
+    std::vector<double> u;         // per observation, for c
+    double cost = 0.0;
+  };
   void build_problem(const std::vector<int>& window);
-  double evaluate_cost(const InverseResponse& inverse, const Eigen::Vector3d& v, const std::vector<double>& exposures,
-                       const std::vector<Point>& points, double delta) const;
-  void initialise_radiances(const InverseResponse& inverse, const Eigen::Vector3d& v,
-                            const std::vector<double>& exposures, std::vector<Point>& points) const;
-
+  void update_u(State& state) const;
+  double data_cost(const State& state, double delta) const;
+  void initialise_radiances(State& state) const;
   PhotometricBackendOptions options_;
   ResponseModel response_;
   VignetteModel vignette_;
@@ -154,6 +179,8 @@ private:
   std::vector<int> window_;
   std::vector<Point> points_;
   std::vector<Observation> observations_;
+  int updates_since_multi_start_ = 0;
+  bool response_fitted_ = false;  // f was estimated at least once
 };
 
 }  // namespace nirslam

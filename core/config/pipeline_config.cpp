@@ -19,7 +19,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   if (!root.IsMap()) throw InputError(file, root.Mark().line + 1, "expected sections 'worker' and 'demo'");
   for (const auto& entry : root) {
     const std::string key = entry.first.as<std::string>();
-    if (key != "worker" && key != "demo")
+    if (key != "worker" && key != "demo" && key != "pipeline" && key != "odometry" && key != "calibration")
       throw InputError(file, entry.first.Mark().line + 1, "field '" + key + "': unknown section");
   }
 
@@ -31,6 +31,30 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
     else worker.fail_at("pacing", "expected 'fast' or 'recorded', got '" + *pacing + "'");
   }
   worker.reject_unknown_keys();
+
+  PipelineOptions& pipeline = config.worker.pipeline;
+  YamlMapReader stages(root["pipeline"], file, "pipeline");
+  if (const auto mode = stages.read_text("mode")) {
+    if (const auto parsed = parse_pipeline_mode(*mode)) pipeline.mode = *parsed;
+    else stages.fail_at("mode", "expected 'quality', 'odometry' or 'calibrated', got '" + *mode + "'");
+  }
+  stages.read<std::size_t>("exposure_history", pipeline.exposure_history, 2, 1'000'000);
+  stages.reject_unknown_keys();
+
+  YamlMapReader odometry(root["odometry"], file, "odometry");
+  odometry.read<int>("points_per_frame", pipeline.odometry.points_per_frame, 100, 20'000);
+  odometry.read<int>("window_size", pipeline.odometry.window_size, 3, 12);
+  odometry.read<int>("window_iterations", pipeline.odometry.window_iterations, 1, 50);
+  odometry.read<double>("max_tracking_rms", pipeline.odometry.max_tracking_rms, 1.0, 255.0);
+  odometry.read<int>("max_frames_between_keyframes", pipeline.odometry.max_frames_between_keyframes, 1, 1000);
+  odometry.reject_unknown_keys();
+
+  YamlMapReader calibration(root["calibration"], file, "calibration");
+  calibration.read_flag("background_thread", pipeline.calibration.background_thread);
+  calibration.read_flag("use_reported_exposures", pipeline.calibration.use_reported_exposures);
+  calibration.read<int>("iterations_per_keyframe", pipeline.calibration.iterations_per_keyframe, 1, 100);
+  calibration.read<int>("queue_capacity", pipeline.calibration.queue_capacity, 1, 1000);
+  calibration.reject_unknown_keys();
 
   YamlMapReader demo(root["demo"], file, "demo");
   demo.read<int>("width", config.demo.width, 64, 8192);

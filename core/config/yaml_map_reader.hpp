@@ -34,6 +34,16 @@ public:
     value = number<T>(item, field(key), min, max);
   }
 
+  // true / false; keeps `value` when the key is absent.
+  void read_flag(const std::string& key, bool& value) {
+    used_.insert(key);
+    if (!has(key)) return;
+    const YAML::Node item = node_[key];
+    bool parsed = false;
+    if (!item.IsScalar() || !YAML::convert<bool>::decode(item, parsed)) fail(item, field(key), "expected true or false");
+    value = parsed;
+  }
+
   // Text; std::nullopt when the key is absent.
   std::optional<std::string> read_text(const std::string& key) {
     used_.insert(key);

@@ -268,6 +268,7 @@ std::optional<Frame> SimulatedSource::next() {
   std::optional<SimulatedFrame> f = simulator_.next(false);
   if (!f) return std::nullopt;
   last_pose_ = f->T_world_cam;
+  f->frame.T_world_cam_truth = f->T_world_cam;
   return std::move(f->frame);
 }
 

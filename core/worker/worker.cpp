@@ -25,6 +25,7 @@ Worker::Worker(WorkerOptions options)
       manual_illuminator_(options_.illumination.illuminator) {
   auto first = std::make_shared<Snapshot>();
   first->illumination = sweep_.status();
+  set_pipeline_views(*first);
   latest_ = std::move(first);
   thread_ = std::thread([this] { run(); });
 }
@@ -68,13 +69,22 @@ void Worker::set_observer(FrameObserver observer) {
   queue_cv_.notify_one();
 }
 
+void Worker::set_finish_handler(FinishHandler handler) {
+  {
+    std::lock_guard lock(queue_mutex_);
+    incoming_finish_handler_ = std::move(handler);
+  }
+  queue_cv_.notify_one();
+}
+
 void Worker::run() {
   while (true) {
     std::deque<Command> commands;
     {
       std::unique_lock lock(queue_mutex_);
       const auto has_work = [&] {
-        return exit_requested_ || !queue_.empty() || incoming_observer_ || state_ == WorkerState::Running ||
+        return exit_requested_ || !queue_.empty() || incoming_observer_ || incoming_finish_handler_ ||
+               state_ == WorkerState::Running ||
                steps_pending_ > 0;
       };
       queue_cv_.wait(lock, has_work);
@@ -83,6 +93,10 @@ void Worker::run() {
       if (incoming_observer_) {
         observer_ = std::move(*incoming_observer_);
         incoming_observer_.reset();
+      }
+      if (incoming_finish_handler_) {
+        finish_handler_ = std::move(*incoming_finish_handler_);
+        incoming_finish_handler_.reset();
       }
     }
     for (Command& command : commands) apply(command);
@@ -135,6 +149,8 @@ void Worker::apply(Command& command) {
           next->feature_grid = {};
           next->exposure = {};
           next->quality_history.clear();
+          next->corrected_image = cv::Mat();
+          set_pipeline_views(*next);
           next->frames_processed = 0;
           next->processing_fps = 0.0;
           next->state = state_ == WorkerState::Running ? state_ : WorkerState::Idle;
@@ -160,6 +176,7 @@ void Worker::apply(Command& command) {
             next->source = source_->info();
             next->state = state_ = WorkerState::Idle;
             next->message = "source ready: " + source_->info().description;
+            restart_pipeline();
           } catch (const std::exception& e) {
             next->state = state_ = WorkerState::Failed;
             next->message = e.what();
@@ -170,6 +187,8 @@ void Worker::apply(Command& command) {
           if (source_ && !source_->info().scene_type.empty())
             sweep_.apply(sweep_command::SelectScene{source_->info().scene_type});
           next->illumination = sweep_.status();
+          set_pipeline_views(*next);
+          if (!pipeline_error_.empty()) next->message = pipeline_error_;
           publish(std::move(next));
         } else if constexpr (std::is_same_v<C, command::SetIlluminatorPower>) {
           std::string message;
@@ -194,6 +213,14 @@ void Worker::apply(Command& command) {
         } else if constexpr (std::is_same_v<C, command::SetPacing>) {
           options_.pacing = c.pacing;
           pacing_origin_.reset();
+        } else if constexpr (std::is_same_v<C, command::SetPipelineMode>) {
+          options_.pipeline.mode = c.mode;
+          if (source_) restart_pipeline();
+          auto next = copy_of_latest();
+          set_pipeline_views(*next);
+          next->corrected_image = cv::Mat();
+          next->message = pipeline_error_.empty() ? fmt::format("pipeline mode: {}", to_string(c.mode)) : pipeline_error_;
+          publish(std::move(next));
         }
       },
       command);
@@ -259,7 +286,22 @@ void Worker::process_one_frame() {
       rewind_source();
       return;
     }
-    return publish_state(WorkerState::Finished, "end of sequence");
+    std::string message = "end of sequence";
+    if (pipeline_) {
+      try {
+        pipeline_->finish();
+        if (finish_handler_) finish_handler_(*pipeline_);
+      } catch (const std::exception& e) {
+        spdlog::error("{}", e.what());
+        return publish_state(WorkerState::Failed, e.what());
+      }
+      auto next = copy_of_latest();
+      set_pipeline_views(*next);
+      next->state = state_ = WorkerState::Finished;
+      next->message = std::move(message);
+      return publish(std::move(next));
+    }
+    return publish_state(WorkerState::Finished, message);
   }
   const auto read_done = Clock::now();
 
@@ -268,6 +310,17 @@ void Worker::process_one_frame() {
   const FrameMetrics metrics = meter_.measure(*frame, &histogram, &grid);
   const ImageQuality& quality = metrics.quality;
   const auto quality_done = Clock::now();
+
+  PipelineFrameResult stages;
+  if (pipeline_) {
+    try {
+      stages = pipeline_->process(*frame);
+    } catch (const std::exception& e) {
+      spdlog::error("{}", e.what());
+      return publish_state(WorkerState::Failed, e.what());
+    }
+  }
+  const auto pipeline_done = Clock::now();
   // The power of the frame: as the frame reports it (a lamp the source drives), else as the operator set it.
   const bool power_from_frame = frame->illuminator_power_w.has_value();
   sweep_.add_frame(metrics, power_from_frame ? frame->illuminator_power_w : power_w_, power_from_frame);
@@ -283,8 +336,8 @@ void Worker::process_one_frame() {
   history_.push_back(sample);
   while (history_.size() > options_.history_length) history_.pop_front();
   ++frames_processed_;
-  recent_completions_.push_back(quality_done);
-  while (quality_done - recent_completions_.front() > std::chrono::seconds(1))
+  recent_completions_.push_back(pipeline_done);
+  while (pipeline_done - recent_completions_.front() > std::chrono::seconds(1))
     recent_completions_.pop_front();
 
   auto next = std::make_shared<Snapshot>();
@@ -301,11 +354,22 @@ void Worker::process_one_frame() {
   next->quality_history.assign(history_.begin(), history_.end());
   next->timings.read_ms = milliseconds_between(started, read_done);
   next->timings.quality_ms = milliseconds_between(read_done, quality_done);
+  next->timings.photometric_ms = stages.timings.photometric_ms;
+  next->timings.odometry_ms = stages.timings.odometry_ms;
+  next->timings.mapping_ms = stages.timings.mapping_ms;
+  next->corrected_image = std::move(stages.corrected);
+  if (stages.odometry) {
+    next->stages.tracking = to_string(stages.odometry->status);
+    next->stages.keyframe = stages.odometry->is_keyframe;
+    next->stages.residual_rms = stages.odometry->residual_rms;
+  }
+  if (stages.photometric) next->stages.exposure_estimate = stages.photometric->exposure;
+  set_pipeline_views(*next);
   next->timings.total_ms = milliseconds_between(started, Clock::now());
   next->frames_processed = frames_processed_;
   next->frames_dropped = source_->frames_dropped();
   const double window_s =
-      std::chrono::duration<double>(quality_done - recent_completions_.front()).count();
+      std::chrono::duration<double>(pipeline_done - recent_completions_.front()).count();
   next->processing_fps =
       recent_completions_.size() > 1 && window_s > 0.0 ? (recent_completions_.size() - 1) / window_s : 0.0;
   next->illuminator_power_w = power_w_;
@@ -330,9 +394,37 @@ void Worker::rewind_source() {
   if (!source_) return;
   try {
     source_->rewind();
+    restart_pipeline();
   } catch (const std::exception& e) {
     publish_state(WorkerState::Failed, e.what());
   }
+}
+
+void Worker::restart_pipeline() {
+  pipeline_.reset();  // the old calibration thread ends before the new one starts
+  pipeline_error_.clear();
+  if (!source_) return;
+  try {
+    pipeline_ = std::make_unique<SlamPipeline>(options_.pipeline, source_->camera(), source_->photometric_truth());
+  } catch (const std::exception& e) {
+    pipeline_error_ = std::string("pipeline: ") + e.what();
+    spdlog::error("{}", pipeline_error_);
+  }
+}
+
+void Worker::set_pipeline_views(Snapshot& snapshot) {
+  snapshot.pipeline_mode = std::string(to_string(options_.pipeline.mode));
+  if (pipeline_) {
+    snapshot.photometric = pipeline_->photometric_view();
+    snapshot.trajectory = pipeline_->trajectory_view();
+    return;
+  }
+  auto photometric = std::make_shared<PhotometricView>();
+  photometric->status = pipeline_error_;
+  auto trajectory = std::make_shared<TrajectoryView>();
+  trajectory->message = pipeline_error_.empty() ? "no source" : pipeline_error_;
+  snapshot.photometric = std::move(photometric);
+  snapshot.trajectory = std::move(trajectory);
 }
 
 void Worker::publish_state(WorkerState state, std::string message) {

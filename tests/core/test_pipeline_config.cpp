@@ -35,6 +35,20 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_EQ(config.demo.width, 640);
   EXPECT_EQ(config.demo.frame_count, 900);
   EXPECT_DOUBLE_EQ(config.demo.illuminator_power_w, 50.0);
+  EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Calibrated);
+  EXPECT_EQ(config.worker.pipeline.odometry.window_size, 7);
+  EXPECT_TRUE(config.worker.pipeline.calibration.background_thread);
+}
+
+TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
+  const PipelineConfig config = load_pipeline_config(write_yaml(
+      "stages", "pipeline:\n  mode: odometry\nodometry:\n  points_per_frame: 1500\n  window_size: 5\n"
+                "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n"));
+  EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
+  EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
+  EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
+  EXPECT_FALSE(config.worker.pipeline.calibration.background_thread);
+  EXPECT_EQ(config.worker.pipeline.calibration.iterations_per_keyframe, 2);
 }
 
 TEST(PipelineConfig, MissingKeysKeepDefaults) {
@@ -58,8 +72,19 @@ TEST(PipelineConfig, ErrorsNameFileLineAndField) {
   const fs::path pacing = write_yaml("pacing", "worker:\n  pacing: slow\n");
   EXPECT_NE(error_of(pacing).find("field 'worker.pacing': expected 'fast' or 'recorded'"), std::string::npos);
 
-  const fs::path section = write_yaml("section", "odometry:\n  points: 2000\n");
-  EXPECT_NE(error_of(section).find(":1: field 'odometry': unknown section"), std::string::npos);
+  const fs::path section = write_yaml("section", "mapping:\n  points: 2000\n");
+  EXPECT_NE(error_of(section).find(":1: field 'mapping': unknown section"), std::string::npos);
+
+  const fs::path mode = write_yaml("mode", "pipeline:\n  mode: dso\n");
+  EXPECT_NE(error_of(mode).find(":2: field 'pipeline.mode': expected 'quality', 'odometry' or 'calibrated'"), std::string::npos)
+      << error_of(mode);
+
+  const fs::path flag = write_yaml("flag", "calibration:\n  background_thread: maybe\n");
+  EXPECT_NE(error_of(flag).find(":2: field 'calibration.background_thread': expected true or false"), std::string::npos)
+      << error_of(flag);
+
+  const fs::path window = write_yaml("window", "odometry:\n  window_size: 40\n");
+  EXPECT_NE(error_of(window).find("field 'odometry.window_size'"), std::string::npos) << error_of(window);
 
   const fs::path broken = write_yaml("broken", "demo: [1, 2\n");
   EXPECT_NE(error_of(broken).find("not valid YAML"), std::string::npos) << error_of(broken);

@@ -351,5 +351,53 @@ TEST(WorkerOnSimulator, OperatorPowerDrivesTheSimulatedLamp) {
   EXPECT_LT(at_20->quality.mean, at_50->quality.mean) << "less light, darker image at fixed exposure";
 }
 
+
+// The whole pipeline in the worker: corrected frames, the photometric and trajectory views in
+// every snapshot, the finish handler with the final state, and a mode switch that restarts the
+// stages. Small frames, so ThreadSanitizer runs it in reasonable time.
+TEST(WorkerOnSimulator, PipelineViewsTravelInSnapshotsAndTheFinishHandlerSeesTheEnd) {
+  WorkerOptions options;
+  options.pipeline.mode = PipelineMode::Calibrated;
+  Worker worker(options);
+  std::atomic<std::size_t> final_poses{0};
+  std::atomic<bool> finished_with_calibration{false};
+  worker.set_finish_handler([&](const SlamPipeline& pipeline) {
+    if (pipeline.odometry()) final_poses = pipeline.odometry()->trajectory().size();
+    finished_with_calibration = pipeline.calibration() != nullptr;
+  });
+  worker.post(command::SetSource{[] {
+    SimulatorOptions sim;
+    sim.scene = sim::SceneKind::Room;
+    sim.width = 320;
+    sim.height = 240;
+    sim.supersampling = 1;
+    sim.frames = 30;
+    return make_simulated_source(sim);
+  }});
+  worker.post(command::Start{});
+  const auto done = worker.wait_for([](const Snapshot& x) { return x.state == WorkerState::Finished || x.state == WorkerState::Failed; },
+                                    std::chrono::seconds(120));
+  ASSERT_EQ(done->state, WorkerState::Finished) << done->message;
+  EXPECT_EQ(done->frames_processed, 30);
+  EXPECT_EQ(done->pipeline_mode, "calibrated");
+  ASSERT_TRUE(done->photometric && done->trajectory);
+  EXPECT_TRUE(done->photometric->enabled);
+  EXPECT_TRUE(done->photometric->true_response.has_value()) << "the simulator's truth is overlaid";
+  EXPECT_EQ(done->photometric->exposures.size(), 30u);
+  EXPECT_TRUE(done->trajectory->enabled);
+  EXPECT_FALSE(done->trajectory->tracking.empty());
+  EXPECT_TRUE(finished_with_calibration.load());
+  EXPECT_EQ(final_poses.load(), done->trajectory->poses.size());
+  ASSERT_TRUE(done->frame.has_value());
+  EXPECT_TRUE(done->frame->T_world_cam_truth.has_value());
+
+  worker.post(command::SetPipelineMode{PipelineMode::Quality});
+  const auto quality = worker.wait_for([](const Snapshot& x) { return x.pipeline_mode == "quality"; }, std::chrono::seconds(10));
+  EXPECT_EQ(quality->pipeline_mode, "quality");
+  EXPECT_FALSE(quality->photometric->enabled);
+  EXPECT_FALSE(quality->trajectory->enabled);
+  EXPECT_TRUE(quality->corrected_image.empty());
+}
+
 }  // namespace
 }  // namespace nirslam

@@ -6,6 +6,8 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include "nirslam/geometry/se3.hpp"
+
 namespace nirslam {
 
 // One grey image as it came from a source, with what the source knows about how it was taken.
@@ -20,6 +22,9 @@ struct Frame {
   std::optional<double> gain;                 // linear analogue gain, when known
   std::optional<double> illuminator_power_w;  // NIR illuminator power, when known
   std::string name;                           // file name or device frame id, for messages
+  // Ground truth, when the source knows it (the simulator): camera-to-world pose at the frame's
+  // timestamp. Never used by the pipeline, only for overlays and evaluation.
+  std::optional<SE3> T_world_cam_truth;
 
   int width() const { return image.cols; }
   int height() const { return image.rows; }

@@ -8,10 +8,17 @@
 #include <string>
 
 #include "nirslam/image/frame.hpp"
+#include "nirslam/photometric/response_model.hpp"
 
 namespace nirslam {
 
 class CameraModel;
+
+// The photometric parameters a source was made with, when it knows them (the simulator).
+struct PhotometricTruth {
+  ResponseModel response;
+  VignetteModel vignette;
+};
 class IlluminatorController;
 
 struct SourceInfo {
@@ -53,6 +60,8 @@ public:
   // sends the operator's power to it, and the frames then report the power they were taken at.
   // Called on the worker thread.
   virtual std::shared_ptr<IlluminatorController> illuminator() const { return nullptr; }
+  // The true response and vignette, when the source knows them (for overlays and evaluation).
+  virtual std::optional<PhotometricTruth> photometric_truth() const { return std::nullopt; }
 };
 
 }  // namespace nirslam

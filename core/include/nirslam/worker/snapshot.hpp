@@ -40,6 +40,14 @@ struct StageTimings {
   double total_ms = 0.0;
 };
 
+// What the pipeline's stages said about one frame, for per-frame logs.
+struct PipelineFrameInfo {
+  std::string tracking;                     // odometry status ("tracking", "lost", ...); empty without odometry
+  bool keyframe = false;                    // the odometry made this frame a keyframe
+  double residual_rms = 0.0;                // of the frame's direct alignment, grey levels
+  std::optional<double> exposure_estimate;  // photometric calibration: ms x gain, or relative
+};
+
 // What the worker knew after one frame. Published as std::shared_ptr<const Snapshot> and never
 // modified afterwards, so readers on other threads need no lock. The frame's pixel buffer is shared
 // with the worker, which never writes to a buffer after publishing it.
@@ -62,6 +70,7 @@ struct Snapshot {
   // The power sweep wizard, the sweeps and the power recommendation. Shared between snapshots
   // until it changes; never null in snapshots the worker publishes.
   std::shared_ptr<const IlluminationStatus> illumination;
+  PipelineFrameInfo stages;    // of `frame`
   std::string pipeline_mode;   // "quality", "odometry", "calibrated", ... (PipelineMode)
   // The frame as the odometry saw it: G(I)/V, CV_32FC1 on the 0..255 scale, when the mode corrects
   // frames; empty otherwise. Shares the pipeline's buffer, never written after publishing.

@@ -40,6 +40,10 @@ struct TrajectoryView {
   // Replaced on keyframes only (it can hold 100k points): shared between views until then.
   std::shared_ptr<const std::vector<MapPointSample>> points;
   std::optional<PoseSample> current;     // the latest frame's pose
+  // The window's active points seen from the latest frame: pixel in the source's (raw) image and
+  // depth along the optical axis (in the estimate's units), for the feed's overlay.
+  std::vector<Eigen::Vector2f> current_pixels;
+  std::vector<float> current_depths;
   // Ground truth as the source reports it (simulator). When enough poses of the current segment
   // have it, the estimate (poses, keyframes, points) is given aligned to it by Sim(3) (Umeyama),
   // so the view draws both in metres and error_m is the absolute trajectory error per pose.

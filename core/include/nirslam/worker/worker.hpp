@@ -16,6 +16,7 @@
 #include "nirslam/config/illumination_config.hpp"
 #include "nirslam/illumination/illuminator.hpp"
 #include "nirslam/illumination/sweep_recorder.hpp"
+#include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/quality/frame_metrics.hpp"
 #include "nirslam/sources/source.hpp"
 #include "nirslam/worker/snapshot.hpp"
@@ -35,6 +36,7 @@ struct WorkerOptions {
   bool loop = false;                 // restart the source at its end instead of finishing
   QualityOptions quality{};          // FAST threshold and coverage grid of the per-frame metrics
   IlluminationConfig illumination = default_illumination_config();  // advisor, sweep plan, priors
+  PipelineOptions pipeline{};        // which stages run (mode) and their settings
 };
 
 namespace command {
@@ -49,6 +51,9 @@ struct SetSource { SourceFactory make; };  // replace the source (opened on the 
 // message.
 struct SetIlluminatorPower { double watts; };
 struct SetPacing { Pacing pacing; };
+// Switches the pipeline mode; the stages restart (calibration and odometry from scratch) with
+// the next frame, the source keeps its place.
+struct SetPipelineMode { PipelineMode mode; };
 // The power sweep wizard (illumination/sweep_recorder.hpp). A Capture also sets the illuminator to
 // its power first, as SetIlluminatorPower does.
 struct Sweep { SweepCommand action; };
@@ -56,7 +61,7 @@ struct Sweep { SweepCommand action; };
 
 using Command = std::variant<command::Start, command::Pause, command::Step, command::Stop,
                              command::Reset, command::SetSource, command::SetIlluminatorPower,
-                             command::SetPacing, command::Sweep>;
+                             command::SetPacing, command::Sweep, command::SetPipelineMode>;
 
 // Owns a source and the pipeline in its own thread. The UI (or a headless writer) posts commands
 // and reads the latest immutable snapshot; neither call waits for frame processing.
@@ -81,6 +86,13 @@ public:
   using FrameObserver = std::function<void(const Snapshot&)>;
   void set_observer(FrameObserver observer);
 
+  // Called on the worker thread when the source ends, after the pipeline's finish() (the
+  // calibration's final optimisation) and before the Finished snapshot is published: batch writers
+  // read the odometry's final trajectory and the calibration from it. An exception it throws turns
+  // the state into Failed with its message. Set it before Start.
+  using FinishHandler = std::function<void(const SlamPipeline&)>;
+  void set_finish_handler(FinishHandler handler);
+
 private:
   using Clock = std::chrono::steady_clock;
 
@@ -88,6 +100,9 @@ private:
   void apply(Command& command);
   void process_one_frame();
   void rewind_source();
+  // A fresh pipeline for the current source (its camera and ground truth) and options_.pipeline.
+  void restart_pipeline();
+  void set_pipeline_views(Snapshot& snapshot);
   void publish_state(WorkerState state, std::string message);
   void publish(std::shared_ptr<Snapshot> next);
   std::shared_ptr<Snapshot> copy_of_latest() const;
@@ -98,6 +113,8 @@ private:
   // Touched by the worker thread only.
   WorkerOptions options_;
   std::unique_ptr<Source> source_;
+  std::unique_ptr<SlamPipeline> pipeline_;
+  std::string pipeline_error_;  // why the pipeline could not be built for this source
   FrameObserver observer_;
   WorkerState state_ = WorkerState::Idle;
   int steps_pending_ = 0;  // Step commands not yet served
@@ -116,6 +133,8 @@ private:
   std::condition_variable queue_cv_;
   std::deque<Command> queue_;
   std::optional<FrameObserver> incoming_observer_;
+  std::optional<FinishHandler> incoming_finish_handler_;
+  FinishHandler finish_handler_;  // worker thread only
   bool exit_requested_ = false;
 
   // Held only to copy or swap the pointer (never while processing), so snapshot() returns within

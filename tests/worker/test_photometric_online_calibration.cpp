@@ -1,5 +1,6 @@
 // OnlinePhotometricCalibration (issue 6): the front end on the caller's thread, the back end on
-// its own; estimate() read from a third thread. Clean under ThreadSanitizer (build-tsan).
+// its own; estimate() read from a third thread. In the worker suite so CI runs it under
+// ThreadSanitizer.
 #include <atomic>
 #include <cmath>
 #include <thread>

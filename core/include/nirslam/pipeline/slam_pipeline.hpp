@@ -1,0 +1,127 @@
+#pragma once
+// The per-frame SLAM pipeline behind the worker, `run` and `bench` (DESIGN.md, "Data flow"):
+//
+//   Frame -> online photometric calibration (front end here, back end on its own thread)
+//         -> corrected frame G(I)/V + exposure -> undistortion to a pinhole -> direct odometry
+//
+// and the immutable views of its state that snapshots carry to the UI. The mode chooses which
+// stages run, so the same sequence can be compared with and without the calibration (the
+// paper's Table 2 columns). Not thread-safe: one thread (the worker's) calls process().
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "nirslam/camera/camera_model.hpp"
+#include "nirslam/camera/undistorter.hpp"
+#include "nirslam/eval/alignment.hpp"
+#include "nirslam/image/frame.hpp"
+#include "nirslam/odometry/direct_odometry.hpp"
+#include "nirslam/photometric/online_calibration.hpp"
+#include "nirslam/sources/source.hpp"
+#include "nirslam/worker/photometric_view.hpp"
+#include "nirslam/worker/trajectory_view.hpp"
+
+namespace nirslam {
+
+enum class PipelineMode {
+  Quality,     // image quality only (entropy, clipping, features): no calibration, no odometry
+  Odometry,    // plain direct odometry on the raw frames, affine brightness free (plain DSO)
+  Calibrated,  // online photometric calibration, odometry on G(I)/V with the estimated exposures
+};
+std::string_view to_string(PipelineMode mode);
+// "quality", "odometry", "calibrated"; std::nullopt for anything else.
+std::optional<PipelineMode> parse_pipeline_mode(std::string_view name);
+// The modes in the order `bench` compares them (each adds one stage to the one before).
+std::vector<PipelineMode> odometry_modes();
+
+struct PipelineOptions {
+  PipelineMode mode = PipelineMode::Calibrated;
+  OdometryOptions odometry;
+  OnlineCalibrationOptions calibration;
+  std::size_t exposure_history = 600;  // frames in the photometric view's exposure plot
+};
+
+struct PipelineTimings {
+  double photometric_ms = 0.0;
+  double undistort_ms = 0.0;
+  double odometry_ms = 0.0;
+  double mapping_ms = 0.0;  // of odometry_ms
+};
+
+struct PipelineFrameResult {
+  cv::Mat corrected;                        // G(I)/V (CV_32FC1, 0..255), Calibrated mode only
+  std::optional<CorrectedFrame> photometric;
+  std::optional<OdometryResult> odometry;
+  PipelineTimings timings;
+};
+
+class SlamPipeline {
+public:
+  // `camera` is the source's calibration (nullptr when it has none: the odometry is then off and
+  // the trajectory view says why). `truth` the source's photometric ground truth, for overlays.
+  SlamPipeline(PipelineOptions options, std::shared_ptr<const CameraModel> camera,
+               std::optional<PhotometricTruth> truth = std::nullopt);
+  ~SlamPipeline();
+  SlamPipeline(const SlamPipeline&) = delete;
+  SlamPipeline& operator=(const SlamPipeline&) = delete;
+
+  // Throws std::invalid_argument for a frame the stages cannot take (size differs from the
+  // camera's), naming the frame.
+  PipelineFrameResult process(const Frame& frame);
+
+  // Immutable views for snapshots; rebuilt only when something changed since the last call.
+  std::shared_ptr<const PhotometricView> photometric_view();
+  std::shared_ptr<const TrajectoryView> trajectory_view();
+
+  // Batch mode: lets the calibration's back end finish its queue and run a final optimisation.
+  void finish();
+
+  const PipelineOptions& options() const { return options_; }
+  PipelineMode mode() const { return options_.mode; }
+  // nullptr when the mode does not run them (or there is no camera for the odometry).
+  const DirectOdometry* odometry() const { return odometry_.get(); }
+  const OnlinePhotometricCalibration* calibration() const { return calibration_.get(); }
+  // The pinhole the odometry works in (after undistortion), when it runs.
+  const PinholeCamera* odometry_camera() const;
+  // Why the odometry does not run, when it does not.
+  const std::string& odometry_off_reason() const { return odometry_off_reason_; }
+
+private:
+  cv::Mat odometry_input(const Frame& frame, const cv::Mat& corrected);
+  void update_trajectory(const Frame& frame, const OdometryResult& result);
+  std::shared_ptr<TrajectoryView> rebuild_trajectory_view();
+  void project_active_points(TrajectoryView& view) const;
+  PoseSample pose_sample(std::int64_t frame_index, double timestamp_s, int segment, const SE3& T_world_cam) const;
+
+  PipelineOptions options_;
+  std::shared_ptr<const CameraModel> camera_;
+  std::optional<PhotometricTruth> truth_;
+  std::unique_ptr<Undistorter> undistorter_;  // null when the camera is already the pinhole
+  std::unique_ptr<PinholeCamera> pinhole_;
+  std::unique_ptr<OnlinePhotometricCalibration> calibration_;
+  std::unique_ptr<DirectOdometry> odometry_;
+  std::string odometry_off_reason_;
+
+  // View state.
+  std::vector<ExposurePoint> exposures_;
+  std::shared_ptr<const PhotometricView> photometric_view_;
+  bool photometric_dirty_ = true;
+  std::unordered_map<std::int64_t, Eigen::Vector3d> truth_positions_;  // frame index -> true centre
+  std::vector<Eigen::Vector3f> truth_path_;                           // in frame order
+  std::optional<OdometryResult> last_odometry_;
+  std::optional<Sim3Transform> alignment_;  // estimate -> ground truth, from the last rebuild
+  std::vector<Eigen::Vector3d> active_points_;  // odometry world frame, from the last rebuild
+  std::shared_ptr<const TrajectoryView> trajectory_view_;
+  bool trajectory_rebuild_ = true;   // keyframe or status change: poses, points, alignment
+  bool trajectory_dirty_ = true;
+  cv::Mat float_buffer_;
+};
+
+}  // namespace nirslam

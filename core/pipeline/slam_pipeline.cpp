@@ -1,0 +1,338 @@
+#include "nirslam/pipeline/slam_pipeline.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <utility>
+
+#include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+namespace nirslam {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// Poses with ground truth needed before the view is aligned to it: fewer cannot fix a Sim(3)
+// reliably on a short, nearly straight start.
+constexpr std::size_t kMinAlignmentPairs = 10;
+
+std::string tracking_text(TrackingStatus status) {
+  switch (status) {
+    case TrackingStatus::Initialising: return "initialising";
+    case TrackingStatus::Tracking: return "tracking";
+    case TrackingStatus::Lost: return "lost";
+    case TrackingStatus::NewSegment: return "new segment";
+  }
+  return "?";
+}
+
+}  // namespace
+
+std::string_view to_string(PipelineMode mode) {
+  switch (mode) {
+    case PipelineMode::Quality: return "quality";
+    case PipelineMode::Odometry: return "odometry";
+    case PipelineMode::Calibrated: return "calibrated";
+  }
+  return "?";
+}
+
+std::optional<PipelineMode> parse_pipeline_mode(std::string_view name) {
+  for (PipelineMode mode : {PipelineMode::Quality, PipelineMode::Odometry, PipelineMode::Calibrated})
+    if (name == to_string(mode)) return mode;
+  return std::nullopt;
+}
+
+std::vector<PipelineMode> odometry_modes() { return {PipelineMode::Odometry, PipelineMode::Calibrated}; }
+
+SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const CameraModel> camera,
+                           std::optional<PhotometricTruth> truth)
+    : options_(std::move(options)), camera_(std::move(camera)), truth_(std::move(truth)) {
+  if (options_.mode == PipelineMode::Calibrated)
+    calibration_ = std::make_unique<OnlinePhotometricCalibration>(options_.calibration);
+  if (options_.mode == PipelineMode::Quality) {
+    odometry_off_reason_ = "this pipeline mode has no odometry";
+  } else if (!camera_) {
+    odometry_off_reason_ = "no camera calibration for this source: odometry off";
+  } else {
+    if (camera_->type() == CameraModelType::Pinhole) {
+      pinhole_ = std::make_unique<PinholeCamera>(camera_->width(), camera_->height(), camera_->intrinsics());
+    } else {
+      // Crop: every output pixel has a source pixel, so no artificial edges reach the odometry.
+      pinhole_ = std::make_unique<PinholeCamera>(make_crop_pinhole(*camera_, camera_->width(), camera_->height()));
+      undistorter_ = std::make_unique<Undistorter>(*camera_, *pinhole_);
+    }
+    odometry_ = std::make_unique<DirectOdometry>(*pinhole_, options_.odometry);
+  }
+}
+
+SlamPipeline::~SlamPipeline() = default;
+
+const PinholeCamera* SlamPipeline::odometry_camera() const { return odometry_ ? pinhole_.get() : nullptr; }
+
+cv::Mat SlamPipeline::odometry_input(const Frame& frame, const cv::Mat& corrected) {
+  cv::Mat grey;
+  if (!corrected.empty()) {
+    grey = corrected;
+  } else {
+    // Raw grey on the 0..255 scale whatever the bit depth, as the odometry's thresholds expect.
+    frame.image.convertTo(float_buffer_, CV_32F, 255.0 / static_cast<double>(frame.max_value()));
+    grey = float_buffer_;
+  }
+  if (!undistorter_) return grey;
+  cv::Mat out;
+  cv::remap(grey, out, undistorter_->map_x(), undistorter_->map_y(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  return out;
+}
+
+PipelineFrameResult SlamPipeline::process(const Frame& frame) {
+  PipelineFrameResult result;
+  if (camera_ && (frame.width() != camera_->width() || frame.height() != camera_->height()))
+    throw std::invalid_argument(fmt::format("{}: image is {}x{}, the camera calibration says {}x{}",
+                                            frame.name.empty() ? fmt::format("frame {}", frame.index) : frame.name,
+                                            frame.width(), frame.height(), camera_->width(), camera_->height()));
+  if (frame.T_world_cam_truth) {
+    const Eigen::Vector3d c = frame.T_world_cam_truth->translation();
+    truth_positions_[frame.index] = c;
+    truth_path_.push_back(c.cast<float>());
+  }
+
+  if (calibration_) {
+    const auto start = Clock::now();
+    CorrectedFrame corrected = calibration_->process(frame);
+    result.timings.photometric_ms = ms_since(start);
+    result.corrected = corrected.irradiance;
+    ExposurePoint point;
+    point.frame_index = frame.index;
+    point.timestamp_s = frame.timestamp_s;
+    point.estimated = corrected.exposure ? static_cast<float>(*corrected.exposure) : std::numeric_limits<float>::quiet_NaN();
+    point.reference = frame.exposure_ms ? static_cast<float>(*frame.exposure_ms * frame.gain.value_or(1.0))
+                                        : std::numeric_limits<float>::quiet_NaN();
+    point.keyframe = corrected.keyframe;
+    exposures_.push_back(point);
+    if (exposures_.size() > options_.exposure_history)
+      exposures_.erase(exposures_.begin(), exposures_.begin() + static_cast<std::ptrdiff_t>(exposures_.size() - options_.exposure_history));
+    photometric_dirty_ = true;
+    result.photometric = std::move(corrected);
+  }
+
+  if (odometry_) {
+    const auto start = Clock::now();
+    OdometryFrame input;
+    input.frame_index = frame.index;
+    input.timestamp_s = frame.timestamp_s;
+    input.image = odometry_input(frame, result.corrected);
+    if (result.photometric) input.exposure = result.photometric->exposure;
+    input.illuminator_power_w = frame.illuminator_power_w;
+    result.timings.undistort_ms = ms_since(start);
+    OdometryResult odometry = odometry_->process(input);
+    result.timings.odometry_ms = odometry.timings.total_ms;
+    result.timings.mapping_ms = odometry.timings.mapping_ms;
+    update_trajectory(frame, odometry);
+    result.odometry = std::move(odometry);
+  }
+  return result;
+}
+
+void SlamPipeline::update_trajectory(const Frame&, const OdometryResult& result) {
+  if (result.is_keyframe || !last_odometry_ || last_odometry_->status != result.status ||
+      last_odometry_->segment != result.segment)
+    trajectory_rebuild_ = true;
+  last_odometry_ = result;
+  trajectory_dirty_ = true;
+}
+
+void SlamPipeline::finish() {
+  if (calibration_) {
+    calibration_->finish();
+    photometric_dirty_ = true;
+  }
+}
+
+std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
+  if (!photometric_dirty_ && photometric_view_) return photometric_view_;
+  auto view = std::make_shared<PhotometricView>();
+  view->enabled = calibration_ != nullptr;
+  if (truth_) {
+    view->true_response = truth_->response;
+    view->true_vignette = truth_->vignette;
+  }
+  if (calibration_) {
+    const std::shared_ptr<const PhotometricEstimate> estimate = calibration_->estimate();
+    view->response = estimate->response;
+    view->vignette = estimate->vignette;
+    view->model_version = estimate->model_version;
+    view->converged = estimate->converged;
+    view->iterations = estimate->iterations;
+    view->cost = estimate->cost;
+    view->keyframes = estimate->keyframes;
+    view->points = estimate->points;
+    view->ambiguity = std::string(to_string(estimate->ambiguity)) +
+                      (estimate->ambiguity_detail.empty() ? "" : ": " + estimate->ambiguity_detail);
+    view->status = estimate->status;
+    const auto& history = calibration_->exposure_history();
+    if (!history.empty()) {
+      view->exposure_status = history.back().status == ExposureStatus::Estimated ? "estimated" : std::string();
+      if (view->exposure_status.empty()) {
+        switch (history.back().status) {
+          case ExposureStatus::FirstFrame: view->exposure_status = "first frame (normalisation)"; break;
+          case ExposureStatus::Restarted: view->exposure_status = "chain restarted"; break;
+          case ExposureStatus::NoEstimateYet: view->exposure_status = "no estimate yet"; break;
+          case ExposureStatus::BlackFrame: view->exposure_status = "black frame: last estimate kept"; break;
+          case ExposureStatus::SaturatedFrame: view->exposure_status = "saturated frame: last estimate kept"; break;
+          case ExposureStatus::TooFewTracks: view->exposure_status = "too few tracks: last estimate kept"; break;
+          case ExposureStatus::NotFinite: view->exposure_status = "no finite estimate: last kept"; break;
+          case ExposureStatus::Estimated: break;
+        }
+      }
+      view->exposure_unit = history.front().reported ? "ms" : "relative";
+    }
+  }
+  view->exposures = exposures_;
+  photometric_view_ = std::move(view);
+  photometric_dirty_ = false;
+  return photometric_view_;
+}
+
+PoseSample SlamPipeline::pose_sample(std::int64_t frame_index, double timestamp_s, int segment, const SE3& T_world_cam) const {
+  PoseSample sample;
+  sample.frame_index = frame_index;
+  sample.timestamp_s = timestamp_s;
+  sample.segment = segment;
+  const SE3 pose = alignment_ ? alignment_->apply(T_world_cam) : T_world_cam;
+  sample.position = pose.translation().cast<float>();
+  sample.rotation = pose.unit_quaternion().cast<float>();
+  if (alignment_) {
+    const auto truth = truth_positions_.find(frame_index);
+    if (truth != truth_positions_.end()) sample.error_m = static_cast<float>((pose.translation() - truth->second).norm());
+  }
+  return sample;
+}
+
+std::shared_ptr<TrajectoryView> SlamPipeline::rebuild_trajectory_view() {
+  auto view = std::make_shared<TrajectoryView>();
+  view->enabled = true;
+  const std::vector<PoseStamped> trajectory = odometry_->trajectory();
+  const int segment = last_odometry_ ? last_odometry_->segment : 0;
+
+  // Align the current segment to the ground truth (Sim(3): monocular scale is arbitrary).
+  alignment_.reset();
+  if (!truth_positions_.empty()) {
+    std::vector<Eigen::Vector3d> estimate;
+    std::vector<Eigen::Vector3d> truth;
+    for (const PoseStamped& p : trajectory) {
+      if (p.segment != segment) continue;
+      const auto t = truth_positions_.find(p.frame_index);
+      if (t == truth_positions_.end()) continue;
+      estimate.push_back(p.T_world_cam.translation());
+      truth.push_back(t->second);
+    }
+    if (estimate.size() >= kMinAlignmentPairs && !alignment_degeneracy(estimate) && !alignment_degeneracy(truth)) {
+      try {
+        alignment_ = align_positions(estimate, truth, AlignmentMode::Sim3).transform;
+      } catch (const std::exception& e) {
+        spdlog::debug("trajectory view: no alignment to ground truth ({})", e.what());
+      }
+    }
+  }
+  view->aligned_to_ground_truth = alignment_.has_value();
+  if (alignment_) view->ground_truth = truth_path_;
+
+  view->poses.reserve(trajectory.size());
+  double squared_error = 0.0;
+  int errors = 0;
+  for (const PoseStamped& p : trajectory) {
+    view->poses.push_back(pose_sample(p.frame_index, p.timestamp_s, p.segment, p.T_world_cam));
+    const PoseSample& s = view->poses.back();
+    if (s.error_m >= 0.0f && s.segment == segment) {
+      squared_error += static_cast<double>(s.error_m) * s.error_m;
+      ++errors;
+    }
+  }
+  if (errors > 0) view->ate_rmse_m = std::sqrt(squared_error / errors);
+  for (const KeyframeState& k : odometry_->keyframes())
+    view->keyframes.push_back(pose_sample(k.frame_index, k.timestamp_s, k.segment, k.T_world_cam));
+  auto points = std::make_shared<std::vector<MapPointSample>>();
+  const std::vector<MapPoint> map = odometry_->points();
+  points->reserve(map.size());
+  active_points_.clear();
+  for (const MapPoint& p : map) {
+    if (p.active) active_points_.push_back(p.p_world);
+    const Eigen::Vector3d position = alignment_ ? alignment_->apply(p.p_world) : p.p_world;
+    points->push_back({position.cast<float>(), p.intensity, p.active});
+  }
+  view->points = std::move(points);
+  return view;
+}
+
+void SlamPipeline::project_active_points(TrajectoryView& view) const {
+  view.current_pixels.clear();
+  view.current_depths.clear();
+  if (!last_odometry_ || !last_odometry_->T_world_cam || !camera_) return;
+  const SE3 T_cam_world = last_odometry_->T_world_cam->inverse();
+  view.current_pixels.reserve(active_points_.size());
+  view.current_depths.reserve(active_points_.size());
+  for (const Eigen::Vector3d& p_world : active_points_) {
+    const Eigen::Vector3d p_cam = T_cam_world * p_world;
+    if (p_cam.z() <= 0.0) continue;
+    // The source's own model: the overlay lands on the raw (distorted) frame the feed shows.
+    const auto pixel = camera_->project(p_cam);
+    if (!pixel || !camera_->contains(*pixel)) continue;
+    view.current_pixels.push_back(pixel->cast<float>());
+    view.current_depths.push_back(static_cast<float>(p_cam.z()));
+  }
+}
+
+std::shared_ptr<const TrajectoryView> SlamPipeline::trajectory_view() {
+  if (!odometry_) {
+    if (!trajectory_view_) {
+      auto view = std::make_shared<TrajectoryView>();
+      view->enabled = false;
+      view->message = odometry_off_reason_;
+      trajectory_view_ = std::move(view);
+    }
+    return trajectory_view_;
+  }
+  if (!trajectory_dirty_ && trajectory_view_) return trajectory_view_;
+
+  std::shared_ptr<TrajectoryView> view;
+  if (trajectory_rebuild_ || !trajectory_view_) {
+    view = rebuild_trajectory_view();
+    trajectory_rebuild_ = false;
+  } else {
+    // Between keyframes only the newest pose is new: copy the last view and append it.
+    view = std::make_shared<TrajectoryView>(*trajectory_view_);
+    if (last_odometry_ && last_odometry_->T_world_cam)
+      view->poses.push_back(pose_sample(last_odometry_->frame_index, last_odometry_->timestamp_s, last_odometry_->segment,
+                                        *last_odometry_->T_world_cam));
+    if (view->aligned_to_ground_truth) view->ground_truth = truth_path_;
+  }
+  if (last_odometry_) {
+    view->tracking = tracking_text(last_odometry_->status);
+    view->message = last_odometry_->message;
+    view->segment = last_odometry_->segment;
+    view->current.reset();
+    if (last_odometry_->T_world_cam)
+      view->current = pose_sample(last_odometry_->frame_index, last_odometry_->timestamp_s, last_odometry_->segment,
+                                  *last_odometry_->T_world_cam);
+  }
+  project_active_points(*view);
+  double length = 0.0;
+  for (std::size_t i = 1; i < view->poses.size(); ++i)
+    if (view->poses[i].segment == view->poses[i - 1].segment)
+      length += (view->poses[i].position - view->poses[i - 1].position).norm();
+  view->path_length = length;
+  trajectory_view_ = std::move(view);
+  trajectory_dirty_ = false;
+  return trajectory_view_;
+}
+
+}  // namespace nirslam

@@ -29,6 +29,7 @@ int main(int argc, char** argv) {
   nirslam::app::add_advise_command(cli, action);
   nirslam::app::add_calibrate_sweep_command(cli, action);
   nirslam::app::add_calibrate_command(cli, action);
+  nirslam::app::add_bench_command(cli, action);
 
   try {
     cli.parse(argc, argv);

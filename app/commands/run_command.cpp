@@ -1,9 +1,12 @@
+#include <sys/resource.h>
+
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -11,7 +14,10 @@
 #include "commands/app_config.hpp"
 #include "commands/source_argument.hpp"
 #include "commands/subcommand.hpp"
+#include "nirslam/eval/trajectory.hpp"
+#include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/session/metrics_csv_writer.hpp"
+#include "nirslam/session/odometry_output.hpp"
 #include "nirslam/sources/frame_limit.hpp"
 #include "nirslam/worker/worker.hpp"
 
@@ -21,6 +27,7 @@ namespace {
 struct RunOptions {
   std::string source = kDefaultSource;
   std::filesystem::path out_dir = "nirslam-run";
+  std::string mode;  // empty: the configured one
   bool recorded_speed = false;
   std::int64_t max_frames = 0;
   double progress_interval_s = 1.0;
@@ -30,22 +37,85 @@ bool settled(const Snapshot& s) {
   return s.state == WorkerState::Finished || s.state == WorkerState::Failed;
 }
 
-void write_summary(const std::filesystem::path& file, const RunOptions& options, const Snapshot& last,
-                   double wall_s, double mean_entropy) {
+double peak_memory_mib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux reports KiB
+}
+
+// What the worker thread gathers while the run goes (read here only after the run settled).
+struct RunTotals {
+  double entropy_sum = 0.0;
+  double photometric_ms = 0.0;
+  double odometry_ms = 0.0;
+  double mapping_ms = 0.0;
+  double quality_ms = 0.0;
+  double read_ms = 0.0;
+  std::int64_t frames = 0;
+  std::int64_t keyframes = 0;
+  std::int64_t lost_frames = 0;
+  std::string source_kind;
+  int width = 0;   // of the frames
+  int height = 0;
+  Trajectory ground_truth;  // from frames that carry it (simulator)
+  // From the finish handler.
+  std::int64_t poses = 0;
+  int segments = 0;
+  std::int64_t map_points = 0;
+  std::vector<std::string> files;
+};
+
+void write_summary(const std::filesystem::path& file, const RunOptions& options, PipelineMode mode,
+                   const Snapshot& last, double wall_s, const RunTotals& totals) {
+  const double n = totals.frames > 0 ? static_cast<double>(totals.frames) : 1.0;
   nlohmann::json summary = {
       {"nirslam_version", NIRSLAM_VERSION},
       {"source", {{"argument", options.source}, {"kind", last.source.kind}, {"description", last.source.description}}},
+      {"mode", std::string(to_string(mode))},
       {"state", to_string(last.state)},
       {"message", last.message},
       {"frames_processed", last.frames_processed},
       {"frames_dropped", last.frames_dropped},
       {"wall_time_s", wall_s},
       {"frames_per_second", wall_s > 0 ? last.frames_processed / wall_s : 0.0},
-      {"mean_entropy_bits", mean_entropy},
+      {"peak_memory_mib", peak_memory_mib()},
+      {"mean_entropy_bits", totals.entropy_sum / n},
+      {"mean_ms", {{"read", totals.read_ms / n}, {"quality", totals.quality_ms / n},
+                   {"photometric", totals.photometric_ms / n}, {"odometry", totals.odometry_ms / n},
+                   {"mapping", totals.mapping_ms / n}}},
+      {"odometry", {{"poses", totals.poses}, {"keyframes", totals.keyframes}, {"segments", totals.segments},
+                    {"lost_frames", totals.lost_frames}, {"map_points", totals.map_points}}},
+      {"files", totals.files},
   };
   std::ofstream out(file);
   out << summary.dump(2) << '\n';
   if (!out) throw std::runtime_error(file.string() + ": cannot write the run summary");
+}
+
+// Writes what the pipeline ended with: trajectory, keyframes, points, calibration.
+void write_pipeline_outputs(const SlamPipeline& pipeline, const std::filesystem::path& out_dir, RunTotals& totals) {
+  if (const DirectOdometry* odometry = pipeline.odometry()) {
+    const std::vector<PoseStamped> trajectory = odometry->trajectory();
+    const std::vector<MapPoint> points = odometry->points();
+    write_trajectory_tum(out_dir / "trajectory.txt", trajectory);
+    write_keyframes(out_dir / "keyframes.txt", odometry->keyframes());
+    write_points_ply(out_dir / "points.ply", points);
+    totals.poses = static_cast<std::int64_t>(trajectory.size());
+    totals.segments = trajectory.empty() ? 0 : trajectory.back().segment + 1;
+    totals.map_points = static_cast<std::int64_t>(points.size());
+    totals.files.insert(totals.files.end(), {"trajectory.txt", "keyframes.txt", "points.ply"});
+  }
+  if (const OnlinePhotometricCalibration* calibration = pipeline.calibration()) {
+    CalibrationOutputInfo info;
+    info.source = totals.source_kind;
+    info.width = totals.width;
+    info.height = totals.height;
+    info.frames = totals.frames;
+    info.mean_front_end_ms = totals.frames > 0 ? totals.photometric_ms / static_cast<double>(totals.frames) : 0.0;
+    write_calibration_output(out_dir / "calibration", *calibration->estimate(), calibration->exposure_history(), info,
+                             std::nullopt);
+    totals.files.push_back("calibration/");
+  }
 }
 
 int run_headless(const RunOptions& options) {
@@ -57,14 +127,40 @@ int run_headless(const RunOptions& options) {
   std::filesystem::create_directories(options.out_dir, error);
   if (error) throw std::runtime_error(options.out_dir.string() + ": cannot create output folder (" + error.message() + ")");
 
-  auto csv = std::make_shared<MetricsCsvWriter>(options.out_dir / "quality.csv");
-  double entropy_sum = 0.0;  // written by the worker thread, read here once it has settled
   WorkerOptions worker_options = app_config().worker;
   if (options.recorded_speed) worker_options.pacing = Pacing::RecordedSpeed;
+  if (!options.mode.empty()) {
+    const auto mode = parse_pipeline_mode(options.mode);
+    if (!mode) throw std::invalid_argument("--mode: expected quality, odometry or calibrated, got '" + options.mode + "'");
+    worker_options.pipeline.mode = *mode;
+  }
+  const PipelineMode mode = worker_options.pipeline.mode;
+
+  auto csv = std::make_shared<MetricsCsvWriter>(options.out_dir / "quality.csv");
+  RunTotals totals;  // written by the worker thread, read here once it has settled
+  totals.files.push_back("quality.csv");
   Worker worker(worker_options);
-  worker.set_observer([csv, &entropy_sum](const Snapshot& s) {
+  worker.set_observer([csv, &totals](const Snapshot& s) {
     csv->write(s);
-    entropy_sum += s.quality.entropy_bits;
+    totals.entropy_sum += s.quality.entropy_bits;
+    totals.read_ms += s.timings.read_ms;
+    totals.quality_ms += s.timings.quality_ms;
+    totals.photometric_ms += s.timings.photometric_ms;
+    totals.odometry_ms += s.timings.odometry_ms;
+    totals.mapping_ms += s.timings.mapping_ms;
+    totals.keyframes += s.stages.keyframe ? 1 : 0;
+    totals.lost_frames += s.stages.tracking == "lost" ? 1 : 0;
+    ++totals.frames;
+    if (s.frame) {
+      totals.width = s.frame->width();
+      totals.height = s.frame->height();
+    }
+    if (s.frame && s.frame->T_world_cam_truth)
+      totals.ground_truth.poses.push_back({s.frame->timestamp_s, *s.frame->T_world_cam_truth});
+  });
+  const std::filesystem::path out_dir = options.out_dir;
+  worker.set_finish_handler([&totals, out_dir](const SlamPipeline& pipeline) {
+    write_pipeline_outputs(pipeline, out_dir, totals);
   });
   worker.post(command::SetSource{factory});
   worker.post(command::Start{});
@@ -76,16 +172,21 @@ int run_headless(const RunOptions& options) {
     last = worker.wait_for(settled, interval);
     if (last->frame && !settled(*last)) {
       const auto total = last->source.frame_count;
-      spdlog::info("frame {}{} | entropy {:.3f} bit | {:.1f} fps", last->frames_processed,
+      const std::string tracking = last->trajectory && last->trajectory->enabled ? " | " + last->trajectory->tracking : "";
+      spdlog::info("frame {}{} | entropy {:.3f} bit | {:.1f} fps{}", last->frames_processed,
                    total ? "/" + std::to_string(*total) : std::string(), last->quality.entropy_bits,
-                   last->processing_fps);
+                   last->processing_fps, tracking);
     }
   }
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  // Every observer call happened on the worker thread before the settled snapshot was published,
-  // and loading that snapshot orders them before the reads below.
-  const double mean_entropy = last->frames_processed > 0 ? entropy_sum / static_cast<double>(last->frames_processed) : 0.0;
-  write_summary(options.out_dir / "summary.json", options, *last, wall_s, mean_entropy);
+  // Every observer and finish-handler call happened on the worker thread before the settled
+  // snapshot was published, and loading that snapshot orders them before the reads below.
+  totals.source_kind = last->source.kind;
+  if (!totals.ground_truth.empty()) {
+    write_tum(options.out_dir / "groundtruth.txt", totals.ground_truth);
+    totals.files.push_back("groundtruth.txt");
+  }
+  write_summary(options.out_dir / "summary.json", options, mode, *last, wall_s, totals);
 
   if (last->state == WorkerState::Failed) {
     spdlog::error("stopped after {} frames: {}", last->frames_processed, last->message);
@@ -93,11 +194,20 @@ int run_headless(const RunOptions& options) {
                 options.out_dir.string().c_str());
     return 1;
   }
-  std::printf("Processed %lld frames in %.2f s (%.1f fps), mean entropy %.3f bit\n",
-              static_cast<long long>(last->frames_processed), wall_s,
-              wall_s > 0 ? last->frames_processed / wall_s : 0.0, mean_entropy);
-  std::printf("Wrote %s and %s\n", csv->path().string().c_str(),
-              (options.out_dir / "summary.json").string().c_str());
+  const double n = totals.frames > 0 ? static_cast<double>(totals.frames) : 1.0;
+  std::printf("Processed %lld frames in %.2f s (%.1f fps), mode %s, mean entropy %.3f bit\n",
+              static_cast<long long>(last->frames_processed), wall_s, wall_s > 0 ? last->frames_processed / wall_s : 0.0,
+              std::string(to_string(mode)).c_str(), totals.entropy_sum / n);
+  std::printf("Per frame: read %.2f ms, quality %.2f ms, photometric %.2f ms, odometry %.2f ms (mapping %.2f ms); peak memory %.0f MiB\n",
+              totals.read_ms / n, totals.quality_ms / n, totals.photometric_ms / n, totals.odometry_ms / n,
+              totals.mapping_ms / n, peak_memory_mib());
+  if (totals.poses > 0 || mode != PipelineMode::Quality)
+    std::printf("Odometry: %lld poses, %lld keyframes, %d segment(s), %lld frames lost, %lld map points\n",
+                static_cast<long long>(totals.poses), static_cast<long long>(totals.keyframes), totals.segments,
+                static_cast<long long>(totals.lost_frames), static_cast<long long>(totals.map_points));
+  std::string files;
+  for (const std::string& f : totals.files) files += (files.empty() ? "" : ", ") + f;
+  std::printf("Wrote %s and summary.json in %s\n", files.c_str(), options.out_dir.string().c_str());
   return 0;
 }
 
@@ -106,9 +216,14 @@ int run_headless(const RunOptions& options) {
 void add_run_command(CLI::App& parent, CommandAction& action) {
   auto options = std::make_shared<RunOptions>();
   CLI::App* cmd = parent.add_subcommand(
-      "run", "Process a sequence headless and write per-frame metrics (quality.csv) and a summary");
+      "run", "Process a sequence headless: per-frame metrics (quality.csv), the trajectory (trajectory.txt, "
+             "keyframes.txt, points.ply), the photometric calibration (calibration/) and summary.json");
   cmd->add_option("source", options->source, kSourceArgumentHelp)->capture_default_str();
   cmd->add_option("-o,--out", options->out_dir, "Output folder")->capture_default_str();
+  cmd->add_option("--mode", options->mode,
+                  "Pipeline stages: quality (metrics only), odometry (plain direct odometry), calibrated "
+                  "(online photometric calibration + odometry); default from the config (pipeline.mode)")
+      ->check(CLI::IsMember({"quality", "odometry", "calibrated"}));
   cmd->add_flag("--realtime", options->recorded_speed,
                 "Follow the recorded timestamps instead of running flat out (config: worker.pacing)");
   cmd->add_option("--max-frames", options->max_frames, "Stop after this many frames")->check(CLI::PositiveNumber);

@@ -108,3 +108,56 @@ TEST(Cli, VersionAndHelp) {
 
 }  // namespace
 }  // namespace nirslam::testing
+
+namespace nirslam::testing {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A short simulated room (small frames, lamp off so the exposures are observable) on disk.
+fs::path small_room_sequence() {
+  static const fs::path folder = [] {
+    const fs::path f = fresh_dir("small_room_sequence");
+    const CommandResult r = run_command(nirslam("simulate --scene room --power 0 --ambient 2 --frames 40 --width 320 "
+                                                "--height 240 --supersampling 1 -o '" + f.string() + "'"));
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return f;
+  }();
+  return folder;
+}
+
+TEST(RunCommand, CalibratedModeWritesTrajectoryCalibrationAndSummary) {
+  const fs::path out = fresh_dir("calibrated");
+  const CommandResult r =
+      run_command(nirslam("run '" + small_room_sequence().string() + "' --mode calibrated --out '" + out.string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* file : {"quality.csv", "trajectory.txt", "keyframes.txt", "points.ply", "summary.json",
+                           "calibration/pcalib.txt", "calibration/vignette.png", "calibration/times.txt",
+                           "calibration/calibration.json"})
+    EXPECT_TRUE(fs::exists(out / file)) << file << "\n" << r.output;
+  std::ifstream summary_file(out / "summary.json");
+  const auto summary = nlohmann::json::parse(summary_file);
+  EXPECT_EQ(summary["mode"], "calibrated");
+  EXPECT_EQ(summary["frames_processed"], 40);
+  EXPECT_GT(summary["odometry"]["poses"].get<int>(), 20) << "the odometry tracked most of the sequence";
+  EXPECT_GT(summary["peak_memory_mib"].get<double>(), 10.0);
+  EXPECT_GT(summary["mean_ms"]["odometry"].get<double>(), 0.0);
+  // Per-frame rows carry the stages' figures: exposure estimate and tracking status.
+  const auto rows = lines_of(out / "quality.csv");
+  ASSERT_EQ(rows.size(), 41u);
+  EXPECT_NE(rows[0].find(",photometric_ms,odometry_ms,mapping_ms,exposure_estimate,tracking,keyframe,residual_rms"),
+            std::string::npos);
+  EXPECT_NE(rows[40].find(",tracking,"), std::string::npos) << rows[40];
+  // The trajectory is TUM and covers the frames with a pose.
+  const auto poses = lines_of(out / "trajectory.txt");
+  EXPECT_GE(std::count_if(poses.begin(), poses.end(), [](const std::string& l) { return !l.empty() && l[0] != '#'; }), 20);
+}
+
+TEST(RunCommand, UnknownModeIsRefused) {
+  const CommandResult r = run_command(nirslam("run demo --mode dso --out '" + fresh_dir("badmode").string() + "'"));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--mode"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace nirslam::testing

@@ -20,7 +20,7 @@ public:
   static constexpr const char* kHeader =
       "frame_index,timestamp_s,exposure_ms,illuminator_power_w,entropy_bits,saturated_fraction,"
       "black_fraction,read_ms,quality_ms,mean,rms_contrast,gradient_energy,feature_count,feature_coverage,"
-      "feature_evenness";
+      "feature_evenness,photometric_ms,odometry_ms,mapping_ms,exposure_estimate,tracking,keyframe,residual_rms";
 
 private:
   void check(const char* what);

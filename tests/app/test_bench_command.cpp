@@ -1,0 +1,52 @@
+// `nirslam bench` on a tiny suite: it renders the simulated sequence once, runs it in every
+// odometry mode, evaluates against the ground truth and writes the Table 2 layout.
+
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "app/cli_runner.hpp"
+
+namespace nirslam::testing {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
+  const fs::path out = fresh_dir("bench_tiny");
+  const CommandResult r =
+      run_command(nirslam("bench --scenes room --powers 50 --frames 40 --size 320x240 --out '" + out.string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("[1/2] Room_50"), std::string::npos) << "progress per run\n" << r.output;
+  const auto md = lines_of(out / "bench.md");
+  ASSERT_GE(md.size(), 3u);
+  EXPECT_EQ(md[0].rfind("| Sequence | ATE odometry [m] | ATE calibrated [m] | Improvement calibrated vs odometry [%]", 0), 0u)
+      << md[0];
+  EXPECT_EQ(md[2].rfind("| Room_50 | 0.", 0), 0u) << "an ATE in metres for the first mode\n" << md[2];
+  const auto csv = lines_of(out / "bench.csv");
+  ASSERT_EQ(csv.size(), 2u);
+  EXPECT_EQ(csv[1].rfind("Room_50,0.", 0), 0u) << csv[1];
+  EXPECT_TRUE(fs::exists(out / "runs/Room_50/calibrated/trajectory.txt"));
+
+  // A second bench reuses the rendered sequence.
+  const CommandResult again = run_command(nirslam("bench --scenes room --powers 50 --frames 40 --size 320x240 --modes odometry --out '" +
+                                                  out.string() + "'"));
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_EQ(again.output.find("rendering"), std::string::npos) << again.output;
+}
+
+TEST(BenchCommand, QualityIsNotAnOdometryMode) {
+  const CommandResult r = run_command(nirslam("bench --modes quality --no-simulated demo --out '" + fresh_dir("bench_bad").string() + "'"));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("not an odometry mode"), std::string::npos) << r.output;
+}
+
+TEST(BenchCommand, MissingDatasetIsNamed) {
+  const CommandResult r = run_command(nirslam("bench --no-simulated /no/such/dataset --out '" + fresh_dir("bench_missing").string() + "'"));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("/no/such/dataset"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace nirslam::testing

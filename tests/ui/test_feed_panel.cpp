@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "ui/gl/shader.hpp"
+#include "ui/colour_maps.hpp"
 #include "ui/panels/feed_panel.hpp"
 #include "ui/ui_test_support.hpp"
 
@@ -186,6 +187,50 @@ TEST_F(FeedPanelTest, WithoutAFrameItSaysHowToGetOne) {
   EXPECT_GT(testing::count_colour(shot, panel.view_rect(), colours::feed_bg, 1),
             static_cast<int>(0.9f * panel.view_rect().width() * panel.view_rect().height()));
   EXPECT_GT(testing::grey_stddev(shot, panel.view_rect()), 1.0);
+}
+
+
+TEST_F(FeedPanelTest, CorrectedViewShowsTheFrameTheOdometrySees) {
+  FeedPanel panel(gl::find_shader_dir());
+  Snapshot snapshot = testing::snapshot_with_frame(ramp_frame(8));
+  // G(I)/V of a made-up model: a flat 200 everywhere, so the corrected view is uniform.
+  snapshot.corrected_image = cv::Mat(kHeight, kWidth, CV_32FC1, cv::Scalar(200.0f));
+  panel.highlight_clipping = false;
+  panel.show_corrected = true;
+  render(panel, snapshot);
+  ASSERT_TRUE(panel.showing_corrected());
+  const cv::Mat shot = ui_->read_rgba();
+  const ScreenRect& image = panel.image_rect();
+  for (int x : {40, 128, 215})
+    EXPECT_TRUE(near(pixel(shot, image_to_screen(image, panel.scale(), x, kHeight / 2)), Rgb{200, 200, 200}, 3)) << x;
+  // Without a corrected image (a mode without calibration) the raw frame stays.
+  snapshot.corrected_image = cv::Mat();
+  render(panel, snapshot);
+  EXPECT_FALSE(panel.showing_corrected());
+  const cv::Mat raw = ui_->read_rgba();
+  EXPECT_TRUE(near(pixel(raw, image_to_screen(panel.image_rect(), panel.scale(), 40, kHeight / 2)),
+                   Rgb{expected_grey(40), expected_grey(40), expected_grey(40)}, 3));
+}
+
+
+TEST_F(FeedPanelTest, TrackedPointsAreDrawnWhereTheyProjectColouredByDepth) {
+  FeedPanel panel(gl::find_shader_dir());
+  Snapshot snapshot = testing::snapshot_with_frame(ramp_frame(8));
+  auto view = std::make_shared<TrajectoryView>();
+  view->enabled = true;
+  view->current_pixels = {Eigen::Vector2f(60.0f, 30.0f), Eigen::Vector2f(190.0f, 90.0f)};
+  view->current_depths = {1.0f, 4.0f};  // near, far
+  snapshot.trajectory = view;
+  panel.highlight_clipping = false;
+  render(panel, snapshot);
+  EXPECT_EQ(panel.points_drawn(), 2);
+  const cv::Mat shot = ui_->read_rgba();
+  const ScreenRect& image = panel.image_rect();
+  EXPECT_TRUE(near(pixel(shot, image_to_screen(image, panel.scale(), 60, 30)), time_colour(1.0f), 12)) << "near: red end";
+  EXPECT_TRUE(near(pixel(shot, image_to_screen(image, panel.scale(), 190, 90)), time_colour(0.0f), 12)) << "far: blue end";
+  panel.show_points = false;
+  render(panel, snapshot);
+  EXPECT_EQ(panel.points_drawn(), 0);
 }
 
 }  // namespace

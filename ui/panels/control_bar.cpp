@@ -69,6 +69,31 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
   vertical_separator();
   badge(state_label(state), state_colour(state));
 
+  // The pipeline mode: which stages run. Switching restarts calibration and odometry.
+  vertical_separator();
+  ImGui::AlignTextToFramePadding();
+  ImGui::TextColored(to_vec4(colours::text_dim), "Mode");
+  ImGui::SameLine();
+  static constexpr PipelineMode kModes[] = {PipelineMode::Quality, PipelineMode::Odometry, PipelineMode::Calibrated};
+  static constexpr const char* kModeLabels[] = {"quality only", "odometry", "calibrated odometry"};
+  int current = 2;
+  for (int i = 0; i < 3; ++i)
+    if (snapshot.pipeline_mode == to_string(kModes[i])) current = i;
+  ImGui::SetNextItemWidth(ImGui::CalcTextSize("calibrated odometry").x + ImGui::GetFrameHeight() + 12.0f);
+  if (!can_post) ImGui::BeginDisabled();
+  if (ImGui::BeginCombo("##mode", kModeLabels[current])) {
+    for (int i = 0; i < 3; ++i)
+      if (ImGui::Selectable(kModeLabels[i], i == current) && i != current) post(command::SetPipelineMode{kModes[i]});
+    ImGui::EndCombo();
+  }
+  if (!can_post) ImGui::EndDisabled();
+  if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
+    ImGui::SetTooltip("Which stages run on every frame:\n"
+                      "quality only: entropy, clipping, features\n"
+                      "odometry: + direct sparse odometry on the raw frames (plain DSO)\n"
+                      "calibrated odometry: + online photometric calibration; the odometry sees G(I)/V\n"
+                      "Switching restarts the calibration and the odometry.");
+
   vertical_separator();
   ImGui::AlignTextToFramePadding();
   ImGui::TextColored(to_vec4(colours::text_dim), "Source");

@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
+#include <opencv2/core.hpp>
 
+#include "ui/colour_maps.hpp"
 #include "ui/theme.hpp"
 
 namespace nirslam::ui {
@@ -64,7 +67,23 @@ void FeedPanel::set_view(float zoom, ImVec2 pan) {
 
 void FeedPanel::draw(const Snapshot& snapshot) {
   const Frame* frame = snapshot.frame && !snapshot.frame->image.empty() ? &*snapshot.frame : nullptr;
-  draw_tool_row(frame);
+  const bool has_corrected = frame != nullptr && !snapshot.corrected_image.empty() &&
+                             snapshot.corrected_image.size() == frame->image.size();
+  draw_tool_row(frame, has_corrected);
+  Frame corrected;
+  showing_corrected_ = show_corrected && has_corrected;
+  if (showing_corrected_) {
+    if (corrected_source_.data != snapshot.corrected_image.data) {
+      cv::Mat grey;
+      snapshot.corrected_image.convertTo(grey, CV_8U);  // G(I)/V is on the 0..255 scale already
+      corrected_grey_ = grey;
+      corrected_source_ = snapshot.corrected_image;
+    }
+    corrected = *frame;
+    corrected.image = corrected_grey_;
+    corrected.bit_depth = 8;
+    frame = &corrected;
+  }
 
   const ImVec2 avail = ImGui::GetContentRegionAvail();
   view_.min = ImGui::GetCursorScreenPos();
@@ -98,11 +117,13 @@ void FeedPanel::draw(const Snapshot& snapshot) {
   draw->PushClipRect(view_.min, view_.max, true);
   draw->AddRect(ImVec2(image_.min.x - 1.0f, image_.min.y - 1.0f), ImVec2(image_.max.x + 1.0f, image_.max.y + 1.0f),
                 colours::border);
+  points_drawn_ = 0;
+  if (show_points && snapshot.trajectory) draw_tracked_points(*snapshot.trajectory);
   draw_overlays(snapshot, *frame, hovered);
   draw->PopClipRect();
 }
 
-void FeedPanel::draw_tool_row(const Frame* frame) {
+void FeedPanel::draw_tool_row(const Frame* frame, bool has_corrected) {
   ImGui::Checkbox("Highlight clipping", &highlight_clipping);
   if (ImGui::IsItemHovered())
     ImGui::SetTooltip("Mark pixels at the top code of the bit depth (saturated) in red\n"
@@ -124,6 +145,16 @@ void FeedPanel::draw_tool_row(const Frame* frame) {
   ImGui::SameLine(0.0f, 24.0f);
   ImGui::Checkbox("Info", &show_info);
   if (ImGui::IsItemHovered()) ImGui::SetTooltip("Show the frame and processing overlays on the image");
+  ImGui::SameLine(0.0f, 16.0f);
+  ImGui::Checkbox("Points", &show_points);
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("The odometry's active points in this frame, coloured by depth (red near, blue far)");
+  ImGui::SameLine(0.0f, 16.0f);
+  if (!has_corrected) ImGui::BeginDisabled();
+  ImGui::Checkbox("Corrected", &show_corrected);
+  if (!has_corrected) ImGui::EndDisabled();
+  if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
+    ImGui::SetTooltip(has_corrected ? "Show G(I)/V, the photometrically corrected frame the odometry sees"
+                                    : "No corrected frame: the pipeline mode has no photometric calibration");
 
   // Right-aligned: zoom readout and view buttons.
   const std::string zoom_text = scale_ > 0.0f ? fmt::format("Zoom {:.0f} %", 100.0f * scale_) : std::string("Zoom –");
@@ -237,6 +268,30 @@ void FeedPanel::render(const Frame& frame) {
   glBindVertexArray(0);
   glBindTexture(GL_TEXTURE_2D, static_cast<GLuint>(previous_texture));
   glUseProgram(0);
+}
+
+void FeedPanel::draw_tracked_points(const TrajectoryView& view) {
+  const std::size_t n = std::min(view.current_pixels.size(), view.current_depths.size());
+  if (n == 0) return;
+  // Inverse depth over its 5-95 % range: near points red, far ones blue, whatever the scale.
+  float lo = std::numeric_limits<float>::max();
+  float hi = 0.0f;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float inverse_depth = 1.0f / std::max(view.current_depths[i], 1e-6f);
+    lo = std::min(lo, inverse_depth);
+    hi = std::max(hi, inverse_depth);
+  }
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  const float radius = std::clamp(1.5f * scale_, 1.5f, 4.0f);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2f& p = view.current_pixels[i];
+    const ImVec2 screen(image_.min.x + (p.x() + 0.5f) * scale_, image_.min.y + (p.y() + 0.5f) * scale_);
+    if (!view_.contains(screen)) continue;
+    const float inverse_depth = 1.0f / std::max(view.current_depths[i], 1e-6f);
+    const float t = hi > lo ? (inverse_depth - lo) / (hi - lo) : 0.5f;
+    draw->AddCircleFilled(screen, radius, time_colour(t), 6);
+    ++points_drawn_;
+  }
 }
 
 void FeedPanel::draw_overlays(const Snapshot& snapshot, const Frame& frame, bool hovered) {

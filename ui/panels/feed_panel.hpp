@@ -32,6 +32,13 @@ public:
 
   bool highlight_clipping = true;
   bool show_info = true;  // frame info and processing rate overlays
+  // Show the photometrically corrected frame G(I)/V (what the odometry sees) instead of the raw
+  // one, when the pipeline mode corrects frames.
+  bool show_corrected = false;
+  // The odometry's active points as seen from the current frame, coloured by inverse depth.
+  bool show_points = true;
+  int points_drawn() const { return points_drawn_; }
+  bool showing_corrected() const { return showing_corrected_; }
 
   // The view. zoom 1 is the whole frame fitted to the panel; pan is the image centre's offset
   // from the panel centre in screen pixels.
@@ -46,11 +53,12 @@ public:
   float scale() const { return scale_; }                   // screen pixels per image pixel
 
 private:
-  void draw_tool_row(const Frame* frame);
+  void draw_tool_row(const Frame* frame, bool has_corrected);
   void handle_input(const Frame& frame, bool hovered, bool active);
   void update_geometry(const Frame& frame);
   void render(const Frame& frame);
   void draw_overlays(const Snapshot& snapshot, const Frame& frame, bool hovered);
+  void draw_tracked_points(const TrajectoryView& view);
 
   gl::Program program_;
   gl::GreyTexture texture_;
@@ -71,6 +79,10 @@ private:
   ScreenRect view_;
   ScreenRect image_;
   float scale_ = 0.0f;
+  bool showing_corrected_ = false;
+  int points_drawn_ = 0;
+  cv::Mat corrected_source_;  // the snapshot's float image last converted
+  cv::Mat corrected_grey_;    // its 8-bit version (a new buffer per frame: the texture cache keys on it)
 };
 
 }  // namespace nirslam::ui

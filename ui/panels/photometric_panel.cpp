@@ -125,29 +125,30 @@ void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
     ImGui::EndGroup();
   };
 
+  // Estimate over truth (when known) on shared x samples.
+  const ImVec2 plot_size(plot_width, plot_height);
+  const auto curve = [&](const char* id, const PlotAxes& axes, const std::vector<double>& x, const std::vector<double>& estimate,
+                         const std::vector<double>& truth) {
+    std::array<PlotSeries, 2> series{PlotSeries{truth.empty() ? std::span<const double>() : x, truth, colours::ground_truth, 1.5f},
+                                     PlotSeries{x, estimate, colours::estimate, 2.0f}};
+    return draw_plot(id, plot_size, axes, series).area;
+  };
+  PlotAxes grey_axes;
+  grey_axes.y_max = 255.0;
+  grey_axes.y_ticks = quarter_ticks(0.0, 255.0);
+  grey_axes.y_label_width = ImGui::CalcTextSize("255").x;
+
   cell("Response f", [&] {
-    PlotAxes axes;
-    axes.y_max = 255.0;
-    axes.y_ticks = quarter_ticks(0.0, 255.0);
-    axes.y_label_width = ImGui::CalcTextSize("255").x;
+    PlotAxes axes = grey_axes;
     axes.x_caption = "irradiance (0..1)";
-    std::array<PlotSeries, 2> series{PlotSeries{response_true_.empty() ? std::span<const double>() : x_unit_, response_true_,
-                                                colours::ground_truth, 1.5f},
-                                     PlotSeries{x_unit_, response_, colours::estimate, 2.0f}};
-    response_plot_ = draw_plot("##response", ImVec2(plot_width, plot_height), axes, series).area;
+    response_plot_ = curve("##response", axes, x_unit_, response_, response_true_);
   });
   ImGui::SameLine();
   cell("Inverse response G (pcalib)", [&] {
-    PlotAxes axes;
+    PlotAxes axes = grey_axes;
     axes.x_max = 255.0;
-    axes.y_max = 255.0;
-    axes.y_ticks = quarter_ticks(0.0, 255.0);
-    axes.y_label_width = ImGui::CalcTextSize("255").x;
     axes.x_caption = "grey level";
-    std::array<PlotSeries, 2> series{PlotSeries{inverse_true_.empty() ? std::span<const double>() : x_grey_, inverse_true_,
-                                                colours::ground_truth, 1.5f},
-                                     PlotSeries{x_grey_, inverse_, colours::estimate, 2.0f}};
-    inverse_plot_ = draw_plot("##inverse", ImVec2(plot_width, plot_height), axes, series).area;
+    inverse_plot_ = curve("##inverse", axes, x_grey_, inverse_, inverse_true_);
   });
   ImGui::SameLine();
   cell("Vignette V(r)", [&] {
@@ -160,10 +161,7 @@ void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
     axes.y_ticks = quarter_ticks(lo, 1.0);
     axes.y_decimals = 2;
     axes.x_caption = "radius (corner = 1)";
-    std::array<PlotSeries, 2> series{PlotSeries{vignette_true_.empty() ? std::span<const double>() : x_unit_, vignette_true_,
-                                                colours::ground_truth, 1.5f},
-                                     PlotSeries{x_unit_, vignette_, colours::estimate, 2.0f}};
-    vignette_plot_ = draw_plot("##vignette", ImVec2(plot_width, plot_height), axes, series).area;
+    vignette_plot_ = curve("##vignette", axes, x_unit_, vignette_, vignette_true_);
   });
   ImGui::SameLine();
   cell("Vignette map", [&] { draw_vignette_map(view, ImVec2(map_width, plot_height)); });

@@ -16,10 +16,14 @@ void StatusBar::draw(const Snapshot& snapshot) {
   const ImU32 message_colour = snapshot.state == WorkerState::Failed ? colours::state_failed : colours::text;
   const std::string message = snapshot.message.empty() ? std::string(state_label(snapshot.state)) : snapshot.message;
 
+  const StageTimings& t = snapshot.timings;
+  std::string stages = fmt::format("read {:.1f} · quality {:.1f}", t.read_ms, t.quality_ms);
+  if (snapshot.photometric && snapshot.photometric->enabled) stages += fmt::format(" · photometric {:.1f}", t.photometric_ms);
+  if (snapshot.trajectory && snapshot.trajectory->enabled)
+    stages += fmt::format(" · odometry {:.1f} (mapping {:.1f})", t.odometry_ms, t.mapping_ms);
   const std::string right =
-      fmt::format("{} frames processed · read {:.2f} ms · quality {:.2f} ms   |   UI {:.0f} fps   |   "
-                  "Space pause/resume · S step",
-                  snapshot.frames_processed, snapshot.timings.read_ms, snapshot.timings.quality_ms, io.Framerate);
+      fmt::format("{} frames · {:.1f} fps · {} ms   |   UI {:.0f} fps   |   Space pause/resume · S step",
+                  snapshot.frames_processed, snapshot.processing_fps, stages, io.Framerate);
   const float right_width = ImGui::CalcTextSize(right.c_str()).x;
   const float right_x = ImGui::GetWindowContentRegionMax().x - right_width;
 

@@ -58,7 +58,10 @@ TrajectoryPanel::TrajectoryPanel(const std::filesystem::path& shader_dir)
   u_round_points_ = program_.uniform("u_round_points");
 }
 
-void TrajectoryPanel::fit_all() { fit_pending_ = true; }
+void TrajectoryPanel::fit_all() {
+  fit_pending_ = true;
+  auto_fit_ = true;
+}
 
 void TrajectoryPanel::draw(const Snapshot& snapshot) {
   const TrajectoryView* view = snapshot.trajectory ? snapshot.trajectory.get() : nullptr;
@@ -87,6 +90,7 @@ void TrajectoryPanel::draw(const Snapshot& snapshot) {
     draw->AddText(ImVec2(c.x - 0.5f * s1.x, c.y - s1.y - 2.0f), colours::text, line1);
     draw->AddText(ImVec2(c.x - 0.5f * s2.x, c.y + 2.0f), colours::text_dim, line2.c_str());
     fit_pending_ = true;
+    auto_fit_ = true;
     up_known_ = false;
     return;
   }
@@ -153,11 +157,15 @@ void TrajectoryPanel::handle_input(bool hovered, bool active) {
     if (panning) {
       camera_.pan(io.MouseDelta.x, io.MouseDelta.y, view_.height());
       follow = false;
+      auto_fit_ = false;
     } else if (ImGui::IsMouseDragging(ImGuiMouseButton_Left, 0.0f)) {
       camera_.orbit(io.MouseDelta.x, io.MouseDelta.y);
     }
   }
-  if (hovered && io.MouseWheel != 0.0f) camera_.zoom(io.MouseWheel);
+  if (hovered && io.MouseWheel != 0.0f) {
+    camera_.zoom(io.MouseWheel);
+    auto_fit_ = false;
+  }
 }
 
 void TrajectoryPanel::rebuild(const TrajectoryView& view) {
@@ -174,7 +182,7 @@ void TrajectoryPanel::rebuild(const TrajectoryView& view) {
       hi = hi.cwiseMax(g);
     }
   const Eigen::Vector3f centre = 0.5f * (lo + hi);
-  scene_radius_ = std::max(0.5f * (hi - lo).norm(), 0.05f);
+  scene_radius_ = std::max(0.5f * (hi - lo).norm(), 1e-3f);
 
   if (!up_known_) {
     // Monocular odometry has no gravity: the first camera's "up" (-y) is the best guess, and it is
@@ -183,8 +191,8 @@ void TrajectoryPanel::rebuild(const TrajectoryView& view) {
     camera_.up = up.normalized();
     up_known_ = true;
   }
-  if (fit_pending_) {
-    camera_.frame(centre, std::max(scene_radius_, 0.5f));
+  if (fit_pending_ || (auto_fit_ && !follow)) {
+    camera_.frame(centre, scene_radius_);
     fit_pending_ = false;
   }
 

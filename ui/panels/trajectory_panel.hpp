@@ -39,7 +39,9 @@ public:
   bool follow = false;       // keep the current camera at the centre of the view
   float point_size = 2.0f;   // pixels
 
-  void fit_all();            // frames everything on the next draw
+  // Frames everything on the next draw, and keeps framing it as the trajectory grows until the
+  // operator moves the view.
+  void fit_all();
   void top_view() { camera_.top_view(); }
   gl::OrbitCamera& camera() { return camera_; }
 
@@ -69,6 +71,7 @@ private:
   Eigen::Matrix4f view_projection_ = Eigen::Matrix4f::Identity();
   ScreenRect view_;
   bool fit_pending_ = true;
+  bool auto_fit_ = true;
   bool up_known_ = false;
   bool by_error_ = false;
   float max_error_ = 0.0f;

@@ -121,7 +121,7 @@ double CoarseInitializer::evaluate(int level, const ImagePyramid& frame, double 
       J[6] = -host_term;
       J[7] = -1.0;
       const double J_rho = grad.dot(d_rho);
-      H.selfadjointView<Eigen::Upper>().rankUpdate(J, hw);
+      H.noalias() += (hw * J) * J.transpose();
       g += hw * r * J;
       H_fp += hw * J_rho * J;
       H_pp += hw * J_rho * J_rho;
@@ -136,7 +136,7 @@ double CoarseInitializer::evaluate(int level, const ImagePyramid& frame, double 
       data_energy += e;
       data_count += kPatternSize;
       if (linearize) {
-        H_ff_ += H.selfadjointView<Eigen::Upper>();
+        H_ff_ += H;
         b_f_ += g;
         H_fp_[i] = H_fp;
         H_pp_[i] = H_pp;
@@ -224,6 +224,13 @@ double CoarseInitializer::optimize_level(int level, const ImagePyramid& frame, d
   evaluate(level, frame, exposure, T_frame_first_, a_, b_, rho, false);
   for (std::size_t i = 0; i < points_.size(); ++i) points_[i].good = inliers_[i] != 0;
   return rms_;
+}
+
+double CoarseInitializer::inlier_fraction() const {
+  if (points_.empty()) return 0.0;
+  std::size_t good = 0;
+  for (const auto& p : points_) good += p.good ? 1 : 0;
+  return static_cast<double>(good) / static_cast<double>(points_.size());
 }
 
 InitializerState CoarseInitializer::add_frame(const ImagePyramid& frame, double exposure) {

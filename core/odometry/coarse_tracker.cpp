@@ -88,11 +88,11 @@ int CoarseTracker::accumulate(int level, const ImagePyramid& frame, double expos
     J[6] = -host_term;
     J[7] = -1.0;
     const double W = wg * hw;
-    H_local.selfadjointView<Eigen::Upper>().rankUpdate(J, W);
+    H_local.noalias() += (W * J) * J.transpose();
     *g += W * r * J;
   }
   if (H != nullptr) {
-    *H = H_local.selfadjointView<Eigen::Upper>();
+    *H = H_local;
     (*H)(6, 6) += options_.affine_a_prior;
     (*H)(7, 7) += options_.affine_b_prior;
     (*g)(6) += options_.affine_a_prior * a;

@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <map>
 #include <stdexcept>
@@ -119,6 +117,8 @@ struct DirectOdometry::Impl {
     io.min_gradient = options.min_gradient;
     io.huber_threshold = options.huber_threshold;
     io.min_parallax_px = options.init_min_parallax_px;
+    io.affine_a_prior = 0.1 * a_prior(false);
+    io.affine_b_prior = 0.1 * b_prior(false);
     initializer = std::make_unique<CoarseInitializer>(cameras, io);
     init_frames.clear();
     init_T_frame_first.clear();
@@ -388,29 +388,12 @@ struct DirectOdometry::Impl {
   }
 
   void map_keyframe() {
-    if (std::getenv("NIRSLAM_ODOMETRY_DEBUG") != nullptr) {
-      int counts[6] = {0, 0, 0, 0, 0, 0};
-      int bounded = 0, quality = 0, interval = 0, total = 0;
-      for (const auto& [id, list] : immature) {
-        for (const auto& ip : list) {
-          ++total;
-          ++counts[static_cast<int>(ip.last_status())];
-          bounded += ip.bounded() ? 1 : 0;
-          quality += ip.quality() >= options.min_trace_quality ? 1 : 0;
-          interval += ip.last_interval_px() < options.max_activation_interval_px ? 1 : 0;
-        }
-      }
-      std::fprintf(stderr, "immature %d: uninit %d good %d skip %d badcond %d oob %d outlier %d | bounded %d quality %d interval %d\n",
-                   total, counts[0], counts[1], counts[2], counts[3], counts[4], counts[5], bounded, quality, interval);
-    }
     activate_points();
-    const auto stats = window->optimize(options.window_iterations);
-    if (std::getenv("NIRSLAM_ODOMETRY_DEBUG")) std::fprintf(stderr, "window: %zu frames %d points energy %.0f -> %.0f in %d it, %d residuals\n", window->frames().size(), window->point_count(), stats.initial_energy, stats.final_energy, stats.iterations, stats.residuals);
+    window->optimize(options.window_iterations);
     for (auto& [host_id, p] : window->remove_bad_points(1, options.drop_points_out_of_newest)) {
       const int hi = window->index_of(host_id);
       archived_points.push_back(to_map_point(window->frames()[static_cast<std::size_t>(hi)], p, cameras[0], segment, false));
     }
-    if (std::getenv("NIRSLAM_ODOMETRY_DEBUG")) std::fprintf(stderr, "after removal: %d points\n", window->point_count());
     marginalise_frames();
     make_immature_points(window->frames().back());
     sync_records();
@@ -441,7 +424,10 @@ struct DirectOdometry::Impl {
     result.affine_a = initializer->affine_a();
     result.affine_b = initializer->affine_b();
     const int frames_tracked = initializer->frames_tracked();
-    if (state == InitializerState::Failed || initializer->rms() > options.max_tracking_rms) {
+    // A reference frame that the next frames do not match (a corrupt frame, a cut) is replaced.
+    if (state == InitializerState::Failed || initializer->rms() > options.max_tracking_rms ||
+        initializer->inlier_fraction() < options.min_tracking_inlier_fraction ||
+        std::abs(initializer->affine_a()) > 1.0) {
       restart("initialiser: alignment failed, restarting from this frame");
       return result;
     }
@@ -493,6 +479,16 @@ struct DirectOdometry::Impl {
     const SE3 T_cam_world = initializer->T_frame_first() * T_first_world;
     add_keyframe(frame, pyramid, T_cam_world, initializer->affine_a(), initializer->affine_b(), exposure);
     map_keyframe();
+    if (window->point_count() < 50) {
+      // The window kept too few of the initialiser's points: try again from this frame.
+      for (auto& [id, rec] : window_records) rec->marginalised = true;
+      keyframes.erase(std::remove_if(keyframes.begin(), keyframes.end(),
+                                     [&](const auto& k) { return window_records.count(k->id) > 0; }),
+                      keyframes.end());
+      start_segment(segment_origin);
+      restart("initialiser: too few points survived the first window, restarting from this frame");
+      return result;
+    }
 
     // The initialiser's frames, relative to the first keyframe (the last one is this frame).
     for (std::size_t i = 0; i + 1 < init_frames.size(); ++i) {
@@ -542,13 +538,6 @@ struct DirectOdometry::Impl {
       const SE3 guess = hypotheses[i] * T_ref_world.inverse();
       TrackingEstimate e =
           tracker->track(*pyramid, exposure, guess, last_a, last_b, have_best ? &best.level_rms : nullptr, 1.5);
-      if (std::getenv("NIRSLAM_ODOMETRY_DEBUG") != nullptr) {
-        std::fprintf(stderr, "  hyp %zu valid %d rms %.2f n %d inl %.2f levels", i, e.valid ? 1 : 0, e.rms,
-                     e.residual_count, e.inlier_fraction);
-        for (double r : e.level_rms) std::fprintf(stderr, " %.2f", r);
-        const Vector6d xi = (e.T_frame_ref * guess.inverse()).log();
-        std::fprintf(stderr, " | step %.4f %.4f\n", xi.head<3>().norm(), xi.tail<3>().norm());
-      }
       if (e.valid && (!have_best || e.rms < best.rms)) {
         best = e;
         have_best = true;
@@ -595,10 +584,6 @@ struct DirectOdometry::Impl {
     const bool keyframe = score > 1.0 || 2.0 * reference_first_rms < best.rms ||
                           frames_since_keyframe >= options.max_frames_between_keyframes;
     result.status = TrackingStatus::Tracking;
-    result.message = "flow t " + std::to_string(best.flow_translation) + " rt " + std::to_string(best.flow_full) +
-                     " brightness " + std::to_string(brightness) + " inliers " + std::to_string(best.inlier_fraction) +
-                     " points " + std::to_string(window->point_count()) + " ref " +
-                     std::to_string(tracker->reference_point_count());
     if (keyframe) {
       const auto t1 = Clock::now();
       add_keyframe(frame, pyramid, T_cam_world, best.affine_a, best.affine_b, exposure);

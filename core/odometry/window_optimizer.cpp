@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
+#include <thread>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -24,8 +24,7 @@ struct PairCache {
 };
 
 const FrameParameters& jacobian_state(const WindowFrame& f) {
-  static const bool no_fej = std::getenv("NIRSLAM_NO_FEJ") != nullptr;
-  return f.first_estimate_fixed && !no_fej ? f.linearisation : f.state;
+  return f.first_estimate_fixed ? f.linearisation : f.state;
 }
 
 std::vector<PairCache> make_pairs(const std::vector<WindowFrame>& frames) {
@@ -57,6 +56,20 @@ Matrix8d host_map(const PairCache& p) {
   M(6, 6) = -1.0;
   M(7, 7) = -p.affine.scale;
   return M;
+}
+
+// Runs body(begin, end, worker) over [0, count) on up to two threads (the machine has two
+// cores; the caller's thread does one half). Small counts stay on the caller's thread.
+template <typename Body>
+void parallel_chunks(std::size_t count, Body&& body) {
+  if (count < 256) {
+    body(std::size_t{0}, count, 0);
+    return;
+  }
+  const std::size_t half = count / 2;
+  std::thread worker([&] { body(half, count, 1); });
+  body(std::size_t{0}, half, 0);
+  worker.join();
 }
 
 }  // namespace
@@ -115,14 +128,22 @@ double WindowOptimizer::energy() {
   const double k = options_.huber_threshold;
   const double c2 = options_.gradient_weight_c * options_.gradient_weight_c;
   const double clamp = options_.outlier_energy * kPatternSize;
-  double e = 0.0;
-  double inlier_energy = 0.0;
-  int inlier_count = 0;
-  for (std::size_t h = 0; h < n; ++h) {
-    for (auto& point : frames_[h].points) {
+  std::vector<std::pair<std::size_t, WindowPoint*>> items;
+  for (std::size_t h = 0; h < n; ++h)
+    for (auto& point : frames_[h].points) items.emplace_back(h, &point);
+  struct Sums {
+    double e = 0.0, inlier_energy = 0.0;
+    int inlier_count = 0;
+  };
+  std::array<Sums, 2> sums{};
+  parallel_chunks(items.size(), [&](std::size_t begin, std::size_t end, int worker) {
+    Sums& acc = sums[static_cast<std::size_t>(worker)];
+    for (std::size_t item = begin; item < end; ++item) {
+      const std::size_t h = items[item].first;
+      WindowPoint& point = *items[item].second;
       if (point.inverse_depth_prior_weight > 0.0) {
         const double d = point.inverse_depth - point.inverse_depth_prior_mean;
-        e += point.inverse_depth_prior_weight * d * d;
+        acc.e += point.inverse_depth_prior_weight * d * d;
       }
       for (auto& res : point.residuals) {
         const int t = index_of(res.target_id);
@@ -149,14 +170,17 @@ double WindowOptimizer::energy() {
           energy += wg * hw * r * r * (2.0 - hw);
         }
         res.energy = in_view ? std::min(energy, clamp) : clamp;
-        e += res.energy;
+        acc.e += res.energy;
         if (in_view && energy < clamp) {
-          inlier_energy += energy;
-          inlier_count += kPatternSize;
+          acc.inlier_energy += energy;
+          acc.inlier_count += kPatternSize;
         }
       }
     }
-  }
+  });
+  double e = sums[0].e + sums[1].e;
+  const double inlier_energy = sums[0].inlier_energy + sums[1].inlier_energy;
+  const int inlier_count = sums[0].inlier_count + sums[1].inlier_count;
   last_rms_ = inlier_count > 0 ? std::sqrt(inlier_energy / inlier_count) : 0.0;
   // Priors.
   for (std::size_t i = 0; i < n; ++i) {
@@ -172,8 +196,8 @@ double WindowOptimizer::energy() {
   return e;
 }
 
-void WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool schur, double lambda,
-                                const std::vector<int>* only_hosts, bool include_priors) {
+double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool schur, double lambda,
+                                  const std::vector<int>* only_hosts, bool include_priors) {
   const std::size_t n = frames_.size();
   const auto N = static_cast<Eigen::Index>(8 * n);
   H.setZero(N, N);
@@ -196,76 +220,105 @@ void WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool sch
            std::find(only_hosts->begin(), only_hosts->end(), static_cast<int>(h)) != only_hosts->end();
   };
 
+  std::vector<std::pair<std::size_t, WindowPoint*>> items;
   for (std::size_t h = 0; h < n; ++h) {
     if (!hosts_to_use(h)) continue;
-    for (auto& point : frames_[h].points) {
-      point.H_pp = point.inverse_depth_prior_weight;
-      point.b_p = point.inverse_depth_prior_weight * (point.inverse_depth - point.inverse_depth_prior_mean);
-      point.H_host_point.setZero();
-      for (auto& res : point.residuals) {
-        res.H_target_point.setZero();
-        res.inlier = false;
-        const int t = index_of(res.target_id);
-        if (t < 0) continue;
-        const std::size_t pair_index = h * n + static_cast<std::size_t>(t);
-        const PairCache& p = pairs[pair_index];
-        const PyramidLevel& target = frames_[static_cast<std::size_t>(t)].pyramid->level(0);
+    for (auto& point : frames_[h].points) items.emplace_back(h, &point);
+  }
+  std::array<double, 2> energy_sum{0.0, 0.0};
+  std::array<std::vector<Matrix8d>, 2> H_rel_worker;
+  std::array<std::vector<Vector8d>, 2> b_rel_worker;
+  for (int wk = 0; wk < 2; ++wk) {
+    H_rel_worker[static_cast<std::size_t>(wk)].assign(n * n, Matrix8d::Zero());
+    b_rel_worker[static_cast<std::size_t>(wk)].assign(n * n, Vector8d::Zero());
+  }
+  parallel_chunks(items.size(), [&](std::size_t begin, std::size_t end, int worker) {
+    std::vector<Matrix8d>& H_rel_local = H_rel_worker[static_cast<std::size_t>(worker)];
+    std::vector<Vector8d>& b_rel_local = b_rel_worker[static_cast<std::size_t>(worker)];
+    for (std::size_t item = begin; item < end; ++item) {
+      const std::size_t h = items[item].first;
+      WindowPoint& point = *items[item].second;
+        point.H_pp = point.inverse_depth_prior_weight;
+        {
+          const double d = point.inverse_depth - point.inverse_depth_prior_mean;
+          energy_sum[static_cast<std::size_t>(worker)] += point.inverse_depth_prior_weight * d * d;
+        }
+        point.b_p = point.inverse_depth_prior_weight * (point.inverse_depth - point.inverse_depth_prior_mean);
+        point.H_host_point.setZero();
+        for (auto& res : point.residuals) {
+          res.H_target_point.setZero();
+          res.inlier = false;
+          const int t = index_of(res.target_id);
+          if (t < 0) continue;
+          const std::size_t pair_index = h * n + static_cast<std::size_t>(t);
+          const PairCache& p = pairs[pair_index];
+          const PyramidLevel& target = frames_[static_cast<std::size_t>(t)].pyramid->level(0);
 
-        Matrix8d H_r = Matrix8d::Zero();
-        Vector8d b_r = Vector8d::Zero();
-        Vector8d H_rp = Vector8d::Zero();
-        double H_pp = 0.0;
-        double b_pp = 0.0;
-        double energy = 0.0;
-        bool in_view = true;
-        for (int i = 0; i < kPatternSize; ++i) {
-          const auto& o = kPattern[static_cast<std::size_t>(i)];
-          const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(o[0], o[1]);
-          Warp w;
+          Matrix8d H_r = Matrix8d::Zero();
+          Vector8d b_r = Vector8d::Zero();
+          Vector8d H_rp = Vector8d::Zero();
+          double H_pp = 0.0;
+          double b_pp = 0.0;
+          double energy = 0.0;
+          bool in_view = true;
+          // The geometric Jacobian of the centre pixel, at the first estimates, serves the
+          // whole pattern (as in DSO): the pattern spans a few pixels of one surface.
           Warp wj;
-          if (!warp_pixel(camera_, p.R, p.t, px, point.inverse_depth, w) ||
-              !camera_.inside(w.pixel.x(), w.pixel.y(), 1.0) ||
-              !warp_pixel(camera_, p.R_jacobian, p.t_jacobian, px, point.inverse_depth, wj)) {
-            in_view = false;
-            break;
+          if (!warp_pixel(camera_, p.R_jacobian, p.t_jacobian, point.pixel, point.inverse_depth, wj)) {
+            res.energy = outlier;
+            continue;
           }
-          const Eigen::Vector3f s =
-              target.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
-          const double host_term =
-              p.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host);
-          const double r = s[0] - host_term - p.affine.b_target;
-          const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()));
-          const double hw = huber_weight(r, k);
-          energy += wg * hw * r * r * (2.0 - hw);
-          const double W = wg * hw;
-
           Matrix26d d_pose;
           Eigen::Vector2d d_rho;
           warp_jacobians(camera_, wj, p.t_jacobian, d_pose, d_rho);
-          const Eigen::Vector2d g = s.tail<2>().cast<double>();
-          Vector8d J;
-          J.head<6>() = (g.transpose() * d_pose).transpose();
-          J[6] = -host_term;
-          J[7] = -1.0;
-          const double J_rho = g.dot(d_rho);
-          H_r.selfadjointView<Eigen::Upper>().rankUpdate(J, W);
-          b_r += W * r * J;
-          H_rp += W * J_rho * J;
-          H_pp += W * J_rho * J_rho;
-          b_pp += W * J_rho * r;
+          for (int i = 0; i < kPatternSize; ++i) {
+            const auto& o = kPattern[static_cast<std::size_t>(i)];
+            const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(o[0], o[1]);
+            Warp w;
+            if (!warp_pixel(camera_, p.R, p.t, px, point.inverse_depth, w) ||
+                !camera_.inside(w.pixel.x(), w.pixel.y(), 1.0)) {
+              in_view = false;
+              break;
+            }
+            const Eigen::Vector3f s =
+                target.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
+            const double host_term =
+                p.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host);
+            const double r = s[0] - host_term - p.affine.b_target;
+            const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()));
+            const double hw = huber_weight(r, k);
+            energy += wg * hw * r * r * (2.0 - hw);
+            const double W = wg * hw;
+
+            const Eigen::Vector2d g = s.tail<2>().cast<double>();
+            Vector8d J;
+            J.head<6>() = (g.transpose() * d_pose).transpose();
+            J[6] = -host_term;
+            J[7] = -1.0;
+            const double J_rho = g.dot(d_rho);
+            H_r.noalias() += (W * J) * J.transpose();
+            b_r += W * r * J;
+            H_rp += W * J_rho * J;
+            H_pp += W * J_rho * J_rho;
+            b_pp += W * J_rho * r;
+          }
+          res.energy = in_view ? std::min(energy, outlier) : outlier;
+          energy_sum[static_cast<std::size_t>(worker)] += res.energy;
+          if (!in_view || energy > outlier) continue;
+          res.inlier = true;
+          H_rel_local[pair_index] += H_r;
+          b_rel_local[pair_index] += b_r;
+          const Matrix8d& M = host_maps[pair_index];
+          point.H_host_point += M * H_rp;
+          res.H_target_point = H_rp;
+          point.H_pp += H_pp;
+          point.b_p += b_pp;
         }
-        res.energy = in_view ? energy : outlier;
-        if (!in_view || energy > outlier) continue;
-        res.inlier = true;
-        H_rel[pair_index] += H_r.selfadjointView<Eigen::Upper>();
-        b_rel[pair_index] += b_r;
-        const Matrix8d& M = host_maps[pair_index];
-        point.H_host_point += M * H_rp;
-        res.H_target_point = H_rp;
-        point.H_pp += H_pp;
-        point.b_p += b_pp;
-      }
     }
+  });
+  for (std::size_t i = 0; i < n * n; ++i) {
+    H_rel[i] = H_rel_worker[0][i] + H_rel_worker[1][i];
+    b_rel[i] = b_rel_worker[0][i] + b_rel_worker[1][i];
   }
 
   for (std::size_t h = 0; h < n; ++h) {
@@ -302,9 +355,10 @@ void WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool sch
     H += H_prior_;
     b += b_prior_ + H_prior_ * delta;
   }
+  double total_energy = energy_sum[0] + energy_sum[1] + (include_priors ? frame_prior_energy() : 0.0);
 
   if (lambda > 0.0) H.diagonal() *= 1.0 + lambda;
-  if (!schur) return;
+  if (!schur) return total_energy;
 
   // Schur complement over the points: each couples its host and its inlier targets.
   std::vector<std::pair<Eigen::Index, const Vector8d*>> coupling;
@@ -325,12 +379,24 @@ void WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool sch
       }
     }
   }
+  return total_energy;
 }
 
-Eigen::VectorXd WindowOptimizer::compute_step(double lambda) {
-  Eigen::MatrixXd H;
-  Eigen::VectorXd b;
-  linearize(H, b, true, lambda, nullptr, true);
+double WindowOptimizer::frame_prior_energy() const {
+  const std::size_t n = frames_.size();
+  double e = 0.0;
+  for (const WindowFrame& f : frames_) {
+    e += f.affine_a_prior_weight * f.state.affine_a * f.state.affine_a;
+    e += f.affine_b_prior_weight * f.state.affine_b * f.state.affine_b;
+    if (f.pose_prior_weight > 0.0)
+      e += f.pose_prior_weight * (f.state.T_cam_world * f.pose_prior.inverse()).log().squaredNorm();
+  }
+  Eigen::VectorXd delta(static_cast<Eigen::Index>(8 * n));
+  for (std::size_t i = 0; i < n; ++i) delta.segment<8>(static_cast<Eigen::Index>(8 * i)) = prior_delta(frames_[i]);
+  return e + 2.0 * b_prior_.dot(delta) + delta.dot(H_prior_ * delta);
+}
+
+Eigen::VectorXd WindowOptimizer::solve(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, double lambda) {
   Eigen::VectorXd dx = H.ldlt().solve(-b);
   // Back-substitute the points, for apply_step.
   const std::size_t n = frames_.size();
@@ -347,6 +413,13 @@ Eigen::VectorXd WindowOptimizer::compute_step(double lambda) {
     }
   }
   return dx;
+}
+
+Eigen::VectorXd WindowOptimizer::compute_step(double lambda) {
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  linearize(H, b, true, lambda, nullptr, true);
+  return solve(H, b, lambda);
 }
 
 void WindowOptimizer::apply_step(const Eigen::VectorXd& dx, double /*lambda*/) {
@@ -377,28 +450,37 @@ void WindowOptimizer::restore() {
 WindowStatistics WindowOptimizer::optimize(int iterations) {
   WindowStatistics stats;
   if (frames_.size() < 2) return stats;
-  double e = energy();
-  stats.initial_energy = e;
+  // Each linearisation also gives the energy at its state, so a step is judged by linearising
+  // at its result: one pass over the residuals per accepted iteration.
   double lambda = options_.initial_lambda;
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  double e = linearize(H, b, true, lambda, nullptr, true);
+  stats.initial_energy = e;
   for (int it = 0; it < iterations; ++it) {
-    backup();
-    const Eigen::VectorXd dx = compute_step(lambda);
+    const Eigen::VectorXd dx = solve(H, b, lambda);
     if (!dx.allFinite()) break;
+    backup();
     apply_step(dx, lambda);
-    const double e_new = energy();
     ++stats.iterations;
+    const double next_lambda = std::max(lambda * 0.25, 1e-6);
+    const double e_new = linearize(H, b, true, next_lambda, nullptr, true);
     if (e_new < e) {
-      const bool converged = e - e_new < 1e-4 * e;
+      const bool converged = e - e_new < 1e-3 * e;
       e = e_new;
-      lambda = std::max(lambda * 0.25, 1e-6);
+      lambda = next_lambda;
       if (converged) break;
     } else {
       restore();
       lambda *= 8.0;
-      if (lambda > 1e4) break;
+      if (lambda > 1e4 || it + 1 == iterations) {
+        e = linearize(H, b, true, lambda, nullptr, true);  // residual flags of the kept state
+        break;
+      }
+      e = linearize(H, b, true, lambda, nullptr, true);
     }
   }
-  stats.final_energy = energy();
+  stats.final_energy = e;
   for (const auto& f : frames_)
     for (const auto& p : f.points)
       for (const auto& r : p.residuals) stats.residuals += r.inlier ? 1 : 0;
@@ -435,10 +517,8 @@ WindowFrame WindowOptimizer::marginalize_frame(int index) {
   // Moved to the first estimates, where the prior lives.
   Eigen::VectorXd delta(static_cast<Eigen::Index>(8 * n));
   for (std::size_t i = 0; i < n; ++i) delta.segment<8>(static_cast<Eigen::Index>(8 * i)) = prior_delta(frames_[i]);
-  if (std::getenv("NIRSLAM_NO_PRIOR") == nullptr) {
-    H_prior_ += H;
-    b_prior_ += b - H * delta;
-  }
+  H_prior_ += H;
+  b_prior_ += b - H * delta;
 
   // Residuals of other points into the marginalised frame are dropped (DSO does the same).
   const std::int64_t id = frames_[m].id;

@@ -61,6 +61,7 @@ public:
   double affine_b() const { return b_; }
   double rms() const { return rms_; }
   double parallax_px() const { return parallax_; }
+  double inlier_fraction() const;  // of the points, in the last frame
   const std::vector<InitialPoint>& points() const { return points_; }
   const std::shared_ptr<const ImagePyramid>& first_pyramid() const { return first_; }
   double first_exposure() const { return first_exposure_; }

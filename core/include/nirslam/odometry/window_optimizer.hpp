@@ -120,8 +120,12 @@ public:
 private:
   struct Linearization;
   // Builds the frame system (H, b) with points Schur-complemented; frames in window order.
-  void linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool schur, double lambda,
-                 const std::vector<int>* only_hosts, bool include_priors);
+  // Returns the energy at the current state (of the hosts included; priors when included).
+  double linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool schur, double lambda,
+                   const std::vector<int>* only_hosts, bool include_priors);
+  // Solves the reduced system and back-substitutes each point's step.
+  Eigen::VectorXd solve(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, double lambda);
+  double frame_prior_energy() const;
   Vector8d prior_delta(const WindowFrame& frame) const;
   void apply_step(const Eigen::VectorXd& dx, double lambda);
   void backup();

@@ -1,0 +1,57 @@
+// The public contract of DirectOdometry that needs no sequence: input checks and names.
+
+#include <stdexcept>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include "nirslam/odometry/direct_odometry.hpp"
+
+namespace nirslam {
+namespace {
+
+PinholeCamera small_camera() { return PinholeCamera(80, 60, Eigen::Vector4d(60.0, 60.0, 39.5, 29.5)); }
+
+TEST(OdometryApi, WrongImageTypeOrSizeNamesTheField) {
+  DirectOdometry odometry(small_camera());
+  OdometryFrame frame;
+  frame.image = cv::Mat(60, 80, CV_8UC1, cv::Scalar(10));
+  try {
+    odometry.process(frame);
+    FAIL() << "an 8-bit image was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("OdometryFrame.image"), std::string::npos) << e.what();
+  }
+  frame.image = cv::Mat(61, 80, CV_32FC1, cv::Scalar(10));
+  EXPECT_THROW(odometry.process(frame), std::invalid_argument);
+  frame.image = cv::Mat(60, 80, CV_32FC1, cv::Scalar(10));
+  frame.exposure = -1.0;
+  EXPECT_THROW(odometry.process(frame), std::invalid_argument);
+}
+
+TEST(OdometryApi, FlatImagesNeverCrashAndGivePosesOnlyOnceInitialised) {
+  DirectOdometry odometry(small_camera());
+  OdometryFrame frame;
+  frame.image = cv::Mat(60, 80, CV_32FC1, cv::Scalar(100));
+  for (int i = 0; i < 5; ++i) {
+    frame.frame_index = i;
+    const OdometryResult r = odometry.process(frame);
+    EXPECT_EQ(r.status, TrackingStatus::Initialising);
+    EXPECT_FALSE(r.T_world_cam.has_value());
+  }
+  EXPECT_TRUE(odometry.trajectory().empty());
+  EXPECT_TRUE(odometry.points().empty());
+  odometry.reset();
+  EXPECT_TRUE(odometry.keyframes().empty());
+}
+
+TEST(OdometryApi, StatusNames) {
+  EXPECT_STREQ(to_string(TrackingStatus::Initialising), "initialising");
+  EXPECT_STREQ(to_string(TrackingStatus::Tracking), "tracking");
+  EXPECT_STREQ(to_string(TrackingStatus::Lost), "lost");
+  EXPECT_STREQ(to_string(TrackingStatus::NewSegment), "new segment");
+}
+
+}  // namespace
+}  // namespace nirslam

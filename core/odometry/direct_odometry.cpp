@@ -390,6 +390,25 @@ struct DirectOdometry::Impl {
   void map_keyframe() {
     activate_points();
     window->optimize(options.window_iterations);
+    // Points the newest keyframe no longer sees leave the window: those still fitting two
+    // keyframes go into the prior, the rest are dropped below.
+    if (options.marginalise_points_out_of_view) {
+      const std::int64_t newest = window->frames().back().id;
+      auto leaving = [newest](const WindowFrame& host, const WindowPoint& p) {
+        if (host.id == newest) return false;
+        int inliers = 0;
+        bool seen = false;
+        for (const auto& r : p.residuals) {
+          inliers += r.inlier ? 1 : 0;
+          seen = seen || (r.target_id == newest && r.inlier);
+        }
+        return !seen && inliers >= 2;
+      };
+      for (auto& [host_id, p] : window->marginalize_points(leaving)) {
+        const int hi = window->index_of(host_id);
+        archived_points.push_back(to_map_point(window->frames()[static_cast<std::size_t>(hi)], p, cameras[0], segment, false));
+      }
+    }
     for (auto& [host_id, p] : window->remove_bad_points(1, options.drop_points_out_of_newest)) {
       const int hi = window->index_of(host_id);
       archived_points.push_back(to_map_point(window->frames()[static_cast<std::size_t>(hi)], p, cameras[0], segment, false));

@@ -487,6 +487,23 @@ WindowStatistics WindowOptimizer::optimize(int iterations) {
   return stats;
 }
 
+void WindowOptimizer::add_points_to_prior() {
+  for (auto& f : frames_) {
+    if (!f.first_estimate_fixed) {
+      f.first_estimate_fixed = true;
+      f.linearisation = f.state;
+    }
+  }
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  linearize(H, b, true, 0.0, nullptr, false);
+  const std::size_t n = frames_.size();
+  Eigen::VectorXd delta(static_cast<Eigen::Index>(8 * n));
+  for (std::size_t i = 0; i < n; ++i) delta.segment<8>(static_cast<Eigen::Index>(8 * i)) = prior_delta(frames_[i]);
+  H_prior_ += H;
+  b_prior_ += b - H * delta;
+}
+
 WindowFrame WindowOptimizer::marginalize_frame(int index) {
   const std::size_t n = frames_.size();
   const auto m = static_cast<std::size_t>(index);

@@ -41,6 +41,7 @@ struct OdometryOptions {
   double min_trace_quality = 3.0;       // second-best / best energy along the line
   double max_activation_interval_px = 8.0;
   bool drop_points_out_of_newest = true;  // points the newest keyframe cannot see leave the window
+  bool marginalise_points_out_of_view = true;  // ... into the prior (else they are just dropped)
 
   // Window.
   int window_size = 7;                  // keyframes

@@ -108,6 +108,26 @@ public:
   // Refines one point's inverse depth alone, the frames held fixed (for a newly activated
   // point). False when fewer than `min_inliers` residuals fit.
   bool optimize_point(int host_index, WindowPoint& point, int iterations, int min_inliers);
+  // Marginalises the points for which `leaving` is true into the prior (Schur complement of each
+  // point over its inlier residuals, as DSO does for points that leave the field of view) and
+  // removes them; returns them.
+  template <typename Predicate>
+  std::vector<std::pair<std::int64_t, WindowPoint>> marginalize_points(Predicate leaving) {
+    std::vector<std::vector<WindowPoint>> kept(frames_.size());
+    std::vector<std::pair<std::int64_t, WindowPoint>> removed;
+    for (std::size_t i = 0; i < frames_.size(); ++i) {
+      std::vector<WindowPoint> leaving_points;
+      for (auto& p : frames_[i].points) (leaving(frames_[i], p) ? leaving_points : kept[i]).push_back(std::move(p));
+      frames_[i].points = std::move(leaving_points);
+    }
+    add_points_to_prior();
+    for (std::size_t i = 0; i < frames_.size(); ++i) {
+      for (auto& p : frames_[i].points) removed.emplace_back(frames_[i].id, std::move(p));
+      frames_[i].points = std::move(kept[i]);
+    }
+    return removed;
+  }
+
   // Removes points with fewer than `min_inliers` inlier residuals, and with `out_of_newest` also
   // those whose residual in the newest keyframe is out of view or an outlier; returns them.
   std::vector<std::pair<std::int64_t, WindowPoint>> remove_bad_points(int min_inliers, bool out_of_newest = false);
@@ -127,6 +147,8 @@ private:
   Eigen::VectorXd solve(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, double lambda);
   double frame_prior_energy() const;
   Vector8d prior_delta(const WindowFrame& frame) const;
+  // Every point currently in the window, Schur-complemented, into the prior (FEJ fixed first).
+  void add_points_to_prior();
   void apply_step(const Eigen::VectorXd& dx, double lambda);
   void backup();
   void restore();

@@ -182,7 +182,12 @@ void evaluate_run(const BenchSequence& sequence, const fs::path& run_dir, std::i
     run.ate_rmse_m = result.ate_m.rmse;
     run.path_length_m = result.ground_truth_path_length_m;
   } catch (const std::exception& e) {
-    run.note = e.what();
+    // The whole message goes to the progress line; the table cell keeps its gist.
+    std::string message = e.what();
+    const std::string prefix = trajectory_file.string() + ": ";
+    if (message.rfind(prefix, 0) == 0) message.erase(0, prefix.size());
+    std::fprintf(stderr, "\n  %s: %s\n", sequence.name.c_str(), e.what());
+    run.note = message.size() > 48 ? message.substr(0, 45) + "..." : message;
   }
 }
 

@@ -47,6 +47,8 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   odometry.read<int>("window_iterations", pipeline.odometry.window_iterations, 1, 50);
   odometry.read<double>("max_tracking_rms", pipeline.odometry.max_tracking_rms, 1.0, 255.0);
   odometry.read<int>("max_frames_between_keyframes", pipeline.odometry.max_frames_between_keyframes, 1, 1000);
+  odometry.read<double>("affine_a_prior_known_exposure", pipeline.odometry.affine_a_prior_known_exposure, 0.0, 1e12);
+  odometry.read<double>("affine_b_prior_known_exposure", pipeline.odometry.affine_b_prior_known_exposure, 0.0, 1e12);
   odometry.reject_unknown_keys();
 
   YamlMapReader calibration(root["calibration"], file, "calibration");

@@ -130,7 +130,12 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     input.frame_index = frame.index;
     input.timestamp_s = frame.timestamp_s;
     input.image = odometry_input(frame, result.corrected);
-    if (result.photometric) input.exposure = result.photometric->exposure;
+    // Exposure for the odometry's brightness model: as the camera reports it when it does (exact,
+    // as DSO uses TUM monoVO's times.txt), else the calibration's estimate.
+    if (calibration_ && options_.calibration.use_reported_exposures && frame.exposure_ms)
+      input.exposure = *frame.exposure_ms * frame.gain.value_or(1.0);
+    else if (result.photometric)
+      input.exposure = result.photometric->exposure;
     input.illuminator_power_w = frame.illuminator_power_w;
     result.timings.undistort_ms = ms_since(start);
     OdometryResult odometry = odometry_->process(input);

@@ -124,7 +124,7 @@ void FeedPanel::draw(const Snapshot& snapshot) {
 }
 
 void FeedPanel::draw_tool_row(const Frame* frame, bool has_corrected) {
-  ImGui::Checkbox("Highlight clipping", &highlight_clipping);
+  ImGui::Checkbox("Clipping", &highlight_clipping);
   if (ImGui::IsItemHovered())
     ImGui::SetTooltip("Mark pixels at the top code of the bit depth (saturated) in red\n"
                       "and pixels at code 0 (black) in blue");

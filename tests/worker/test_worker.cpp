@@ -30,6 +30,14 @@ namespace {
 
 using namespace std::chrono_literals;
 
+// Worker mechanics are tested with the image-quality stage only: the calibration and odometry
+// stages are tested on their own and in PipelineViewsTravelInSnapshots... below, and would make
+// these tests minutes long in the sanitiser builds.
+WorkerOptions quality_only(WorkerOptions options = {}) {
+  options.pipeline.mode = PipelineMode::Quality;
+  return options;
+}
+
 // A dataset-like source of `count` small frames whose pixel value is the frame index; frame
 // `bad_index` (if any) throws as a corrupt file would.
 class CountingSource final : public Source {
@@ -72,7 +80,7 @@ bool settled(const Snapshot& s) {
 }
 
 TEST(Worker, StartsIdleWithAnEmptySnapshot) {
-  Worker worker;
+  Worker worker(quality_only());
   const auto snapshot = worker.snapshot();
   ASSERT_TRUE(snapshot);
   EXPECT_EQ(snapshot->state, WorkerState::Idle);
@@ -80,7 +88,7 @@ TEST(Worker, StartsIdleWithAnEmptySnapshot) {
 }
 
 TEST(Worker, ProcessesEveryFrameOfADatasetThenFinishes) {
-  Worker worker({.pacing = Pacing::AsFastAsPossible, .history_length = 10});
+  Worker worker(quality_only({.pacing = Pacing::AsFastAsPossible, .history_length = 10}));
   worker.post(command::SetSource{counting(25)});
   worker.post(command::Start{});
   const auto last = worker.wait_for(settled, 10s);
@@ -95,7 +103,7 @@ TEST(Worker, ProcessesEveryFrameOfADatasetThenFinishes) {
 }
 
 TEST(Worker, PauseHoldsAndStepAdvancesExactlyOneFrame) {
-  Worker worker;
+  Worker worker(quality_only());
   worker.post(command::SetSource{counting(100)});
   worker.post(command::Step{});
   auto s = worker.wait_for([](const Snapshot& x) { return x.frames_processed == 1; }, 5s);
@@ -111,7 +119,7 @@ TEST(Worker, PauseHoldsAndStepAdvancesExactlyOneFrame) {
 }
 
 TEST(Worker, StopRewindsAndStartBeginsAgain) {
-  Worker worker;
+  Worker worker(quality_only());
   worker.post(command::SetSource{counting(5)});
   worker.post(command::Start{});
   ASSERT_EQ(worker.wait_for(settled, 5s)->state, WorkerState::Finished);
@@ -123,7 +131,7 @@ TEST(Worker, StopRewindsAndStartBeginsAgain) {
 }
 
 TEST(Worker, CorruptFrameFailsWithTheFileNamed) {
-  Worker worker;
+  Worker worker(quality_only());
   worker.post(command::SetSource{counting(10, 0.05, 4)});
   worker.post(command::Start{});
   const auto s = worker.wait_for(settled, 5s);
@@ -133,7 +141,7 @@ TEST(Worker, CorruptFrameFailsWithTheFileNamed) {
 }
 
 TEST(Worker, FrameOfTheWrongPixelTypeFailsInsteadOfBeingMeasured) {
-  Worker worker;
+  Worker worker(quality_only());
   worker.post(command::SetSource{counting(10, 0.05, -1, 3)});
   worker.post(command::Start{});
   const auto s = worker.wait_for(settled, 5s);
@@ -142,7 +150,7 @@ TEST(Worker, FrameOfTheWrongPixelTypeFailsInsteadOfBeingMeasured) {
 }
 
 TEST(Worker, SourceThatCannotOpenReportsWhy) {
-  Worker worker;
+  Worker worker(quality_only());
   worker.post(command::SetSource{[]() -> std::unique_ptr<Source> {
     throw InputError("/data/seq/times.txt", 3, "expected 'id timestamp exposure'");
   }});
@@ -155,7 +163,7 @@ TEST(Worker, SourceThatCannotOpenReportsWhy) {
 }
 
 TEST(Worker, RecordedSpeedFollowsTheTimestamps) {
-  Worker worker({.pacing = Pacing::RecordedSpeed});
+  Worker worker(quality_only({.pacing = Pacing::RecordedSpeed}));
   worker.post(command::SetSource{counting(11, 0.04)});  // 0.4 s of recording
   const auto started = std::chrono::steady_clock::now();
   worker.post(command::Start{});
@@ -165,7 +173,7 @@ TEST(Worker, RecordedSpeedFollowsTheTimestamps) {
 }
 
 TEST(Worker, ObserverSeesEveryFrameBeforeItIsPublished) {
-  Worker worker;
+  Worker worker(quality_only());
   std::vector<std::int64_t> seen;  // written on the worker thread only, read after it settles
   worker.set_observer([&seen](const Snapshot& s) { seen.push_back(s.frame->index); });
   worker.post(command::SetSource{counting(30)});
@@ -178,7 +186,7 @@ TEST(Worker, ObserverSeesEveryFrameBeforeItIsPublished) {
 }
 
 TEST(Worker, ReadersOnOtherThreadsSeeConsistentMonotonicSnapshots) {
-  Worker worker;
+  Worker worker(quality_only());
   worker.post(command::SetSource{[] {
     DemoOptions options;
     options.width = 160;
@@ -217,7 +225,7 @@ TEST(Worker, ReadersOnOtherThreadsSeeConsistentMonotonicSnapshots) {
 TEST(Worker, DestroyingARunningWorkerStopsPromptly) {
   const auto started = std::chrono::steady_clock::now();
   {
-    Worker worker({.pacing = Pacing::RecordedSpeed, .loop = true});
+    Worker worker(quality_only({.pacing = Pacing::RecordedSpeed, .loop = true}));
     worker.post(command::SetSource{counting(1000, 1.0)});  // would take 1000 s
     worker.post(command::Start{});
     worker.wait_for([](const Snapshot& s) { return s.frames_processed >= 1; }, 5s);
@@ -226,7 +234,7 @@ TEST(Worker, DestroyingARunningWorkerStopsPromptly) {
 }
 
 TEST(Worker, IlluminatorPowerIsCarriedIntoSnapshots) {
-  Worker worker;
+  Worker worker(quality_only());
   worker.post(command::SetIlluminatorPower{80.0});
   const auto s = worker.wait_for([](const Snapshot& x) { return x.illuminator_power_w.has_value(); }, 5s);
   ASSERT_TRUE(s->illuminator_power_w);
@@ -234,7 +242,7 @@ TEST(Worker, IlluminatorPowerIsCarriedIntoSnapshots) {
 }
 
 TEST(Worker, IlluminatorPowerOutsideTheLampsRangeIsRefused) {
-  Worker worker;  // manual lamp, 0..150 W by default
+  Worker worker(quality_only());  // manual lamp, 0..150 W by default
   worker.post(command::SetIlluminatorPower{60.0});
   worker.post(command::SetIlluminatorPower{400.0});
   const auto s = worker.wait_for(
@@ -245,7 +253,7 @@ TEST(Worker, IlluminatorPowerOutsideTheLampsRangeIsRefused) {
 }
 
 TEST(Worker, PublishesEveryFrameMetricAndTheExposureVerdict) {
-  Worker worker({.pacing = Pacing::AsFastAsPossible, .history_length = 10});
+  Worker worker(quality_only({.pacing = Pacing::AsFastAsPossible, .history_length = 10}));
   DemoOptions demo;
   demo.frame_count = 3;
   worker.post(command::SetSource{[demo] { return make_demo_source(demo); }});
@@ -269,7 +277,7 @@ TEST(Worker, PublishesEveryFrameMetricAndTheExposureVerdict) {
 // every captured power is the power the frames were taken at, the frames get brighter with it,
 // and the recommendation comes from the sweep once four powers are in.
 TEST(Worker, SweepWizardCapturesEachPowerFromTheDemosLamp) {
-  WorkerOptions options{.pacing = Pacing::AsFastAsPossible, .loop = true};
+  WorkerOptions options = quality_only({.pacing = Pacing::AsFastAsPossible, .loop = true});
   options.illumination.sweep.settle_frames = 1;
   Worker worker(options);
   DemoOptions demo;
@@ -326,7 +334,7 @@ SourceFactory small_simulated(sim::SceneKind scene) {
 }
 
 TEST(WorkerOnSimulator, SimulatedSceneSelectsTheAdvisorsScenePrior) {
-  Worker worker;
+  Worker worker(quality_only());
   worker.post(command::SetSource{small_simulated(sim::SceneKind::Parking)});
   const auto s = worker.wait_for(
       [](const Snapshot& x) { return x.illumination && x.illumination->scene() && x.source.kind == "sim"; },
@@ -337,7 +345,7 @@ TEST(WorkerOnSimulator, SimulatedSceneSelectsTheAdvisorsScenePrior) {
 }
 
 TEST(WorkerOnSimulator, OperatorPowerDrivesTheSimulatedLamp) {
-  Worker worker;
+  Worker worker(quality_only());
   worker.post(command::SetSource{small_simulated(sim::SceneKind::Room)});
   worker.post(command::Step{});
   const auto at_50 = worker.wait_for([](const Snapshot& x) { return x.frames_processed == 1; }, std::chrono::seconds(10));
@@ -368,22 +376,22 @@ TEST(WorkerOnSimulator, PipelineViewsTravelInSnapshotsAndTheFinishHandlerSeesThe
   worker.post(command::SetSource{[] {
     SimulatorOptions sim;
     sim.scene = sim::SceneKind::Room;
-    sim.width = 320;
-    sim.height = 240;
+    sim.width = 192;
+    sim.height = 144;
     sim.supersampling = 1;
-    sim.frames = 30;
+    sim.frames = 20;
     return make_simulated_source(sim);
   }});
   worker.post(command::Start{});
   const auto done = worker.wait_for([](const Snapshot& x) { return x.state == WorkerState::Finished || x.state == WorkerState::Failed; },
-                                    std::chrono::seconds(120));
+                                    std::chrono::seconds(300));
   ASSERT_EQ(done->state, WorkerState::Finished) << done->message;
-  EXPECT_EQ(done->frames_processed, 30);
+  EXPECT_EQ(done->frames_processed, 20);
   EXPECT_EQ(done->pipeline_mode, "calibrated");
   ASSERT_TRUE(done->photometric && done->trajectory);
   EXPECT_TRUE(done->photometric->enabled);
   EXPECT_TRUE(done->photometric->true_response.has_value()) << "the simulator's truth is overlaid";
-  EXPECT_EQ(done->photometric->exposures.size(), 30u);
+  EXPECT_EQ(done->photometric->exposures.size(), 20u);
   EXPECT_TRUE(done->trajectory->enabled);
   EXPECT_FALSE(done->trajectory->tracking.empty());
   EXPECT_TRUE(finished_with_calibration.load());

@@ -34,15 +34,9 @@ double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-struct KeyframeRecord {
+// A keyframe's public state plus the window's id for it, shared by the frames it anchors.
+struct KeyframeRecord : KeyframeState {
   std::int64_t id = 0;
-  std::int64_t frame_index = 0;
-  double timestamp_s = 0.0;
-  int segment = 0;
-  SE3 T_world_cam;
-  double affine_a = 0.0;
-  double affine_b = 0.0;
-  bool marginalised = false;
 };
 
 struct FrameRecord {
@@ -686,8 +680,8 @@ std::vector<PoseStamped> DirectOdometry::trajectory() const {
 
 std::vector<KeyframeState> DirectOdometry::keyframes() const {
   std::vector<KeyframeState> out;
-  for (const auto& k : impl_->keyframes)
-    out.push_back({k->frame_index, k->timestamp_s, k->segment, k->T_world_cam, k->affine_a, k->affine_b, k->marginalised});
+  out.reserve(impl_->keyframes.size());
+  for (const auto& k : impl_->keyframes) out.push_back(static_cast<const KeyframeState&>(*k));
   return out;
 }
 

@@ -27,6 +27,7 @@ struct GuiOptions {
   std::string size;        // "WxH"; empty: the front end's default
   bool fast = false;       // windowed: process as fast as possible instead of at recorded speed
   bool loop = false;       // restart the source at its end
+  std::string tab = "illumination";  // the strip tab shown first
 };
 
 struct Size {
@@ -69,6 +70,7 @@ int headless(Worker& worker, const GuiOptions& options, const std::filesystem::p
   HeadlessOptions headless_options;
   headless_options.frames = options.frames;
   headless_options.screenshot = screenshot;
+  headless_options.photometric_tab = options.tab == "photometric";
   if (!options.size.empty()) {
     const Size size = *parse_size(options.size);
     headless_options.width = size.width;
@@ -106,6 +108,7 @@ int run_gui(const GuiOptions& options) {
   window_options.title = fmt::format("nirslam — {}", options.source);
   window_options.screenshot = options.screenshot;
   window_options.screenshot_after_frames = options.frames;
+  window_options.photometric_tab = options.tab == "photometric";
   if (!options.size.empty()) {
     const Size size = *parse_size(options.size);
     window_options.width = size.width;
@@ -133,6 +136,9 @@ void add_gui_command(CLI::App& parent, CommandAction& action) {
   gui->add_option("--size", options->size, "Window or image size as WIDTHxHEIGHT (default 1440x900 windowed, 1280x800 headless)")
       ->check(CLI::Validator(check_size, "WxH"));
   gui->add_flag("--fast", options->fast, "Windowed: process frames as fast as possible instead of at recorded speed");
+  gui->add_option("--tab", options->tab, "The tab shown first under the feed: illumination or photometric")
+      ->check(CLI::IsMember({"illumination", "photometric"}))
+      ->capture_default_str();
   gui->add_flag("--loop", options->loop, "Restart the source at its end (built-in sequences always loop in a window)");
   gui->callback([&action, options] {
     action = [options] {

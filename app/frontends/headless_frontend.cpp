@@ -56,6 +56,7 @@ HeadlessResult run_headless(Worker& worker, const HeadlessOptions& options) {
 
   ui::OffscreenUi offscreen(options.width, options.height);
   ui::Application app(shader_dir, [&worker](Command c) { worker.post(std::move(c)); });
+  if (options.photometric_tab) app.select_tab(ui::Application::StripTab::Photometric);
 
   HeadlessResult result;
   result.renderer = egl.description();

@@ -17,6 +17,7 @@ struct HeadlessOptions {
   std::int64_t frames = 60;            // render until the worker has processed at least this many
   std::filesystem::path screenshot;    // PNG written at the end
   std::chrono::milliseconds timeout{120000};
+  bool photometric_tab = false;        // show the Photometric tab of the strip instead of Illumination
 };
 
 struct HeadlessResult {

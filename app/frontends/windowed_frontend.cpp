@@ -90,6 +90,7 @@ void run_windowed(Worker& worker, const WindowedOptions& options) {
   ui::UiContext ui({.scale = scale});
   GlfwPlatform platform(window.get());
   ui::Application app(ui::gl::find_shader_dir(), [&worker](Command c) { worker.post(std::move(c)); });
+  if (options.photometric_tab) app.select_tab(ui::Application::StripTab::Photometric);
 
   worker.post(command::Start{});
   bool screenshot_pending = !options.screenshot.empty();

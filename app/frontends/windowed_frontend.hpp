@@ -16,6 +16,7 @@ struct WindowedOptions {
   // frames (the window stays open).
   std::filesystem::path screenshot;
   std::int64_t screenshot_after_frames = 60;
+  bool photometric_tab = false;      // open on the Photometric tab of the strip
 };
 
 // The operator GUI in a GLFW window (OpenGL 3.3 core, vsync, ImGui GLFW + OpenGL3 backends).

@@ -1,3 +1,4 @@
+#include <cstdlib>
 #include <filesystem>
 #include <string>
 
@@ -38,6 +39,36 @@ TEST(GuiCommand, HeadlessOnRealEurocData) {
                                               "' --headless --frames 10 --screenshot '" + shot.string() + "'"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(fs::exists(shot));
+}
+
+// --tab photometric brings the calibration's curves to the front: the estimate's orange lines fill
+// the strip under the views, where the illumination tab has none.
+TEST(GuiCommand, PhotometricTabShowsTheCalibrationCurves) {
+  const auto orange_in_strip = [](const fs::path& shot) {
+    const cv::Mat image = cv::imread(shot.string(), cv::IMREAD_COLOR);  // BGR
+    if (image.empty()) return -1;
+    int count = 0;
+    for (int y = image.rows * 2 / 3; y < image.rows; ++y)
+      for (int x = 0; x < image.cols * 6 / 10; ++x) {
+        const cv::Vec3b p = image.at<cv::Vec3b>(y, x);
+        count += std::abs(p[2] - 245) < 30 && std::abs(p[1] - 158) < 30 && std::abs(p[0] - 50) < 30 ? 1 : 0;
+      }
+    return count;
+  };
+  const fs::path dir = fresh_dir("gui_tab");
+  const CommandResult photometric = run_command(nirslam("gui sim:room --headless --frames 30 --size 960x600 --tab photometric "
+                                                        "--screenshot '" + (dir / "photometric.png").string() + "'"));
+  ASSERT_EQ(photometric.exit_code, 0) << photometric.output;
+  const CommandResult illumination = run_command(nirslam("gui sim:room --headless --frames 30 --size 960x600 "
+                                                         "--screenshot '" + (dir / "illumination.png").string() + "'"));
+  ASSERT_EQ(illumination.exit_code, 0) << illumination.output;
+  const int curves = orange_in_strip(dir / "photometric.png");
+  EXPECT_GT(curves, 300);
+  EXPECT_GT(curves, 3 * orange_in_strip(dir / "illumination.png"));
+
+  const CommandResult bad = run_command(nirslam("gui --headless --tab odometry"));
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.output.find("--tab"), std::string::npos) << bad.output;
 }
 
 TEST(GuiCommand, ErrorsNameWhatIsWrongBeforeAnyWork) {

@@ -32,12 +32,14 @@ void legend(bool with_truth) {
   }
 }
 
-// Ticks at 0, 1/4, ... of a range, so every small plot reads the same way.
-std::vector<double> quarter_ticks(double lo, double hi) {
+// Ticks at 0, 1/n, ... of a range, so every small plot reads the same way.
+std::vector<double> even_ticks(double lo, double hi, int n) {
   std::vector<double> ticks;
-  for (int i = 0; i <= 4; ++i) ticks.push_back(lo + (hi - lo) * i / 4.0);
+  for (int i = 0; i <= n; ++i) ticks.push_back(lo + (hi - lo) * i / n);
   return ticks;
 }
+
+std::vector<double> quarter_ticks(double lo, double hi) { return even_ticks(lo, hi, 4); }
 
 }  // namespace
 
@@ -232,7 +234,8 @@ void PhotometricPanel::draw_exposure(const PhotometricView& view, float height) 
   PlotAxes axes;
   axes.y_min = std::max(0.0, lo - margin);
   axes.y_max = hi + margin;
-  axes.y_ticks = quarter_ticks(axes.y_min, axes.y_max);
+  // A short plot gets fewer labels, so they never touch.
+  axes.y_ticks = even_ticks(axes.y_min, axes.y_max, height < 4.0f * ImGui::GetTextLineHeight() * 2.0f ? 2 : 4);
   axes.y_decimals = axes.y_max < 1.0 ? 3 : axes.y_max < 10.0 ? 2 : 1;
   const double first = view.exposures.empty() ? 0.0 : static_cast<double>(view.exposures.front().frame_index);
   const double last = view.exposures.empty() ? 1.0 : static_cast<double>(view.exposures.back().frame_index);

@@ -72,6 +72,18 @@ void parallel_chunks(std::size_t count, Body&& body) {
   worker.join();
 }
 
+// A frame's priors on its affine brightness and (when set) its pose, at its 8-block offset `o`.
+void add_frame_priors(const WindowFrame& f, Eigen::Index o, Eigen::MatrixXd& H, Eigen::VectorXd& b) {
+  H(o + 6, o + 6) += f.affine_a_prior_weight;
+  b(o + 6) += f.affine_a_prior_weight * f.state.affine_a;
+  H(o + 7, o + 7) += f.affine_b_prior_weight;
+  b(o + 7) += f.affine_b_prior_weight * f.state.affine_b;
+  if (f.pose_prior_weight > 0.0) {
+    H.block<6, 6>(o, o).diagonal().array() += f.pose_prior_weight;
+    b.segment<6>(o) += f.pose_prior_weight * (f.state.T_cam_world * f.pose_prior.inverse()).log();
+  }
+}
+
 }  // namespace
 
 WindowOptimizer::WindowOptimizer(const LevelCamera& camera, const WindowOptions& options)
@@ -338,18 +350,7 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
   }
 
   if (include_priors) {
-    for (std::size_t i = 0; i < n; ++i) {
-      const WindowFrame& f = frames_[i];
-      const auto o = static_cast<Eigen::Index>(8 * i);
-      H(o + 6, o + 6) += f.affine_a_prior_weight;
-      b(o + 6) += f.affine_a_prior_weight * f.state.affine_a;
-      H(o + 7, o + 7) += f.affine_b_prior_weight;
-      b(o + 7) += f.affine_b_prior_weight * f.state.affine_b;
-      if (f.pose_prior_weight > 0.0) {
-        H.block<6, 6>(o, o).diagonal().array() += f.pose_prior_weight;
-        b.segment<6>(o) += f.pose_prior_weight * (f.state.T_cam_world * f.pose_prior.inverse()).log();
-      }
-    }
+    for (std::size_t i = 0; i < n; ++i) add_frame_priors(frames_[i], static_cast<Eigen::Index>(8 * i), H, b);
     Eigen::VectorXd delta(N);
     for (std::size_t i = 0; i < n; ++i) delta.segment<8>(static_cast<Eigen::Index>(8 * i)) = prior_delta(frames_[i]);
     H += H_prior_;
@@ -519,18 +520,7 @@ WindowFrame WindowOptimizer::marginalize_frame(int index) {
   Eigen::VectorXd b;
   const std::vector<int> hosts{index};
   linearize(H, b, true, 0.0, &hosts, false);
-  {
-    const WindowFrame& f = frames_[m];
-    const auto o = static_cast<Eigen::Index>(8 * m);
-    H(o + 6, o + 6) += f.affine_a_prior_weight;
-    b(o + 6) += f.affine_a_prior_weight * f.state.affine_a;
-    H(o + 7, o + 7) += f.affine_b_prior_weight;
-    b(o + 7) += f.affine_b_prior_weight * f.state.affine_b;
-    if (f.pose_prior_weight > 0.0) {
-      H.block<6, 6>(o, o).diagonal().array() += f.pose_prior_weight;
-      b.segment<6>(o) += f.pose_prior_weight * (f.state.T_cam_world * f.pose_prior.inverse()).log();
-    }
-  }
+  add_frame_priors(frames_[m], static_cast<Eigen::Index>(8 * m), H, b);
   // Moved to the first estimates, where the prior lives.
   Eigen::VectorXd delta(static_cast<Eigen::Index>(8 * n));
   for (std::size_t i = 0; i < n; ++i) delta.segment<8>(static_cast<Eigen::Index>(8 * i)) = prior_delta(frames_[i]);

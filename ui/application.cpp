@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <utility>
 
 #include "ui/theme.hpp"
@@ -45,12 +46,12 @@ Application::Layout Application::compute_layout(ImVec2 display) const {
   }
   // The measurement column: about a third of the width, readable at any window size.
   const float width = std::clamp(std::round(0.34f * w), std::min(380.0f, 0.5f * w), 600.0f);
-  const bool left_panels = panels.feed || panels.view3d || panels.illumination || panels.photometric;
+  const bool left_panels = panels.feed || panels.view3d || panels.illumination || panels.photometric || panels.session;
   const float split = !panels.entropy ? w : left_panels ? w - width : 0.0f;
   if (panels.entropy) layout.entropy = {ImVec2(split, top), ImVec2(w, bottom)};
   // Under the feed and the 3-D view, a strip for the illumination and photometric tabs: wide
   // enough for the plots side by side, short enough to leave the views most of the height.
-  const bool strip = panels.illumination || panels.photometric;
+  const bool strip = panels.illumination || panels.photometric || panels.session;
   const bool views = panels.feed || panels.view3d;
   float strip_top = bottom;
   if (strip) {
@@ -67,6 +68,7 @@ Application::Layout Application::compute_layout(ImVec2 display) const {
 }
 
 void Application::draw(const Snapshot& snapshot) {
+  notifications_.observe(snapshot);
   handle_shortcuts(snapshot);
   layout_ = compute_layout(ImGui::GetIO().DisplaySize);
 
@@ -92,7 +94,7 @@ void Application::draw(const Snapshot& snapshot) {
     ImGui::End();
     ImGui::PopStyleVar();
   }
-  if (panels.illumination || panels.photometric) draw_strip(snapshot);
+  if (panels.illumination || panels.photometric || panels.session) draw_strip(snapshot);
   if (panels.status) {
     ImGui::PushStyleVar(ImGuiStyleVar_WindowPadding, ImVec2(10.0f, 5.0f));
     ImGui::PushStyleColor(ImGuiCol_WindowBg, to_vec4(rgba(24, 26, 30)));
@@ -101,51 +103,139 @@ void Application::draw(const Snapshot& snapshot) {
     ImGui::PopStyleColor();
     ImGui::PopStyleVar();
   }
+  // Over the views: what the operator must not miss, and the shortcut list.
+  ScreenRect views = layout_.feed;
+  if (!layout_.view3d.empty()) views = views.empty() ? layout_.view3d : ScreenRect{views.min, layout_.view3d.max};
+  if (views.empty()) views = {ImVec2(0.0f, 0.0f), ImGui::GetIO().DisplaySize};
+  notifications_.draw(views);
+  help_.draw(views);
 }
 
 void Application::draw_strip(const Snapshot& snapshot) {
-  const bool both = panels.illumination && panels.photometric;
-  const char* title = both ? "##strip" : panels.illumination ? "Illumination###strip" : "Photometric###strip";
-  if (begin_tile(title, layout_.strip, both ? kBarFlags : kTileFlags)) {
-    if (!both) {
-      if (panels.illumination)
-        illumination_.draw(snapshot, post_);
-      else
-        photometric_.draw(snapshot);
-    } else if (ImGui::BeginTabBar("##strip_tabs")) {
-      const auto flags = [this](StripTab tab) {
-        return requested_tab_ == tab ? ImGuiTabItemFlags_SetSelected : ImGuiTabItemFlags_None;
-      };
-      if (ImGui::BeginTabItem("Illumination", nullptr, flags(StripTab::Illumination))) {
-        illumination_.draw(snapshot, post_);
-        ImGui::EndTabItem();
-      }
-      if (ImGui::BeginTabItem("Photometric", nullptr, flags(StripTab::Photometric))) {
-        photometric_.draw(snapshot);
-        ImGui::EndTabItem();
-      }
-      requested_tab_.reset();
-      ImGui::EndTabBar();
+  struct Tab {
+    StripTab id;
+    const char* label;
+    bool shown;
+  };
+  const Tab tabs[] = {{StripTab::Illumination, "Illumination", panels.illumination},
+                      {StripTab::Photometric, "Photometric", panels.photometric},
+                      {StripTab::Session, "Session", panels.session}};
+  const auto draw_tab = [&](StripTab tab) {
+    current_tab_ = tab;
+    switch (tab) {
+      case StripTab::Illumination: illumination_.draw(snapshot, post_); break;
+      case StripTab::Photometric: photometric_.draw(snapshot); break;
+      case StripTab::Session: session_.draw(snapshot, post_, session_actions_); break;
     }
+  };
+  int shown = 0;
+  const Tab* only = nullptr;
+  for (const Tab& tab : tabs)
+    if (tab.shown) {
+      ++shown;
+      only = &tab;
+    }
+  if (shown == 1) {
+    const std::string title = std::string(only->label) + "###strip";
+    if (begin_tile(title.c_str(), layout_.strip, kTileFlags)) draw_tab(only->id);
+    ImGui::End();
+    return;
+  }
+  if (begin_tile("##strip", layout_.strip, kBarFlags) && ImGui::BeginTabBar("##strip_tabs")) {
+    for (const Tab& tab : tabs) {
+      if (!tab.shown) continue;
+      const ImGuiTabItemFlags flags = requested_tab_ == tab.id ? ImGuiTabItemFlags_SetSelected : ImGuiTabItemFlags_None;
+      if (ImGui::BeginTabItem(tab.label, nullptr, flags)) {
+        draw_tab(tab.id);
+        ImGui::EndTabItem();
+      }
+    }
+    requested_tab_.reset();
+    ImGui::EndTabBar();
   }
   ImGui::End();
 }
 
+void Application::apply(const UiPreferences& p) {
+  feed_.show_corrected = p.feed_corrected;
+  feed_.highlight_clipping = p.feed_clipping;
+  feed_.show_points = p.feed_points;
+  view3d_.show_points = p.view3d_points;
+  view3d_.show_keyframes = p.view3d_keyframes;
+  view3d_.show_ground_truth = p.view3d_ground_truth;
+  view3d_.follow = p.view3d_follow;
+  view3d_.colouring = p.view3d_colour_by_error ? TrajectoryPanel::Colouring::Error : TrajectoryPanel::Colouring::Time;
+  session_.recent_sources = p.recent_sources;
+  if (!p.last_source.empty()) session_.select(p.last_source);
+  session_.set_recorded_speed(p.recorded_speed);
+  if (p.strip_tab == "photometric")
+    select_tab(StripTab::Photometric);
+  else if (p.strip_tab == "session")
+    select_tab(StripTab::Session);
+  else
+    select_tab(StripTab::Illumination);
+  if (post_) {
+    if (const auto mode = parse_pipeline_mode(p.pipeline_mode)) post_(command::SetPipelineMode{*mode});
+    post_(command::SetPacing{p.recorded_speed ? Pacing::RecordedSpeed : Pacing::AsFastAsPossible});
+  }
+}
+
+void Application::capture(UiPreferences& p) const {
+  p.feed_corrected = feed_.show_corrected;
+  p.feed_clipping = feed_.highlight_clipping;
+  p.feed_points = feed_.show_points;
+  p.view3d_points = view3d_.show_points;
+  p.view3d_keyframes = view3d_.show_keyframes;
+  p.view3d_ground_truth = view3d_.show_ground_truth;
+  p.view3d_follow = view3d_.follow;
+  p.view3d_colour_by_error = view3d_.colouring == TrajectoryPanel::Colouring::Error;
+  p.recent_sources = session_.recent_sources;
+  p.recorded_speed = session_.recorded_speed();
+  switch (current_tab_) {
+    case StripTab::Illumination: p.strip_tab = "illumination"; break;
+    case StripTab::Photometric: p.strip_tab = "photometric"; break;
+    case StripTab::Session: p.strip_tab = "session"; break;
+  }
+}
+
 void Application::handle_shortcuts(const Snapshot& snapshot) {
   const ImGuiIO& io = ImGui::GetIO();
-  if (!post_ || io.WantTextInput) return;
-  const bool has_source = !snapshot.source.kind.empty() || !snapshot.source.description.empty();
-  if (!has_source) return;
-  const int space = ImGui::GetKeyIndex(ImGuiKey_Space);
-  if (space >= 0 && ImGui::IsKeyPressed(space, false)) {
-    if (snapshot.state == WorkerState::Running)
-      post_(command::Pause{});
-    else
-      post_(command::Start{});
-  }
+  if (io.WantTextInput || io.KeyCtrl || io.KeyAlt || io.KeySuper) return;
   // Letters have no ImGuiKey in 1.86; the typed character is layout-aware and backend-neutral.
   for (const ImWchar c : io.InputQueueCharacters)
-    if ((c == 's' || c == 'S') && snapshot.state != WorkerState::Running) post_(command::Step{});
+    if (const Shortcut* shortcut = shortcut_for(c)) run_shortcut(shortcut->id, snapshot);
+}
+
+void Application::run_shortcut(ShortcutAction action, const Snapshot& snapshot) {
+  const bool has_source = !snapshot.source.kind.empty() || !snapshot.source.description.empty();
+  const bool can_control = static_cast<bool>(post_) && has_source;
+  switch (action) {
+    case ShortcutAction::StartPause:
+      if (!can_control) break;
+      if (snapshot.state == WorkerState::Running)
+        post_(command::Pause{});
+      else
+        post_(command::Start{});
+      break;
+    case ShortcutAction::Step:
+      if (can_control && snapshot.state != WorkerState::Running) post_(command::Step{});
+      break;
+    case ShortcutAction::Stop:
+      if (can_control && (snapshot.state == WorkerState::Running || snapshot.state == WorkerState::Paused))
+        post_(command::Stop{});
+      break;
+    case ShortcutAction::ToggleCorrected: feed_.show_corrected = !feed_.show_corrected; break;
+    case ShortcutAction::FitViews:
+      feed_.fit();
+      view3d_.fit_all();
+      break;
+    case ShortcutAction::FollowCamera: view3d_.follow = !view3d_.follow; break;
+    case ShortcutAction::TopView: view3d_.top_view(); break;
+    case ShortcutAction::SessionTab: select_tab(StripTab::Session); break;
+    case ShortcutAction::IlluminationTab: select_tab(StripTab::Illumination); break;
+    case ShortcutAction::PhotometricTab: select_tab(StripTab::Photometric); break;
+    case ShortcutAction::Help: help_.visible = !help_.visible; break;
+  }
 }
 
 }  // namespace nirslam::ui

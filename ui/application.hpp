@@ -2,18 +2,24 @@
 
 #include <filesystem>
 #include <optional>
+#include <utility>
 
 #include <imgui.h>
 
+#include "nirslam/config/ui_preferences.hpp"
 #include "nirslam/worker/snapshot.hpp"
 #include "ui/command_sink.hpp"
 #include "ui/panels/control_bar.hpp"
 #include "ui/panels/entropy_panel.hpp"
 #include "ui/panels/feed_panel.hpp"
 #include "ui/panels/illumination_panel.hpp"
+#include "ui/panels/notification_area.hpp"
 #include "ui/panels/photometric_panel.hpp"
+#include "ui/panels/session_panel.hpp"
+#include "ui/panels/shortcut_help.hpp"
 #include "ui/panels/status_bar.hpp"
 #include "ui/panels/trajectory_panel.hpp"
+#include "ui/shortcuts.hpp"
 #include "ui/widgets.hpp"
 
 namespace nirslam::ui {
@@ -25,6 +31,7 @@ struct PanelSet {
   bool entropy = true;
   bool illumination = true;
   bool photometric = true;
+  bool session = true;
   bool view3d = true;
   bool status = true;
 };
@@ -43,8 +50,16 @@ public:
   Application(const std::filesystem::path& shader_dir, CommandSink post);
 
   // Draws the whole layout, between UiContext::begin_frame() and end_frame(). Handles the
-  // keyboard shortcuts: Space pauses or resumes, S steps one frame.
+  // keyboard shortcuts of ui/shortcuts.hpp (Space pauses or resumes, S steps, H lists them all).
   void draw(const Snapshot& snapshot);
+
+  // How the Session tab opens sources (the app's job); without it the picker is disabled.
+  void set_session_actions(SessionActions actions) { session_actions_ = std::move(actions); }
+
+  // The operator's choices: restored at start (views, tab, recent sources, playback) and read
+  // back at exit. apply() posts the pipeline mode and pacing when there is a sink.
+  void apply(const UiPreferences& preferences);
+  void capture(UiPreferences& preferences) const;
 
   struct Layout {
     ScreenRect controls;
@@ -64,14 +79,19 @@ public:
   IlluminationPanel& illumination() { return illumination_; }
   PhotometricPanel& photometric() { return photometric_; }
   TrajectoryPanel& view3d() { return view3d_; }
+  SessionPanel& session() { return session_; }
+  NotificationArea& notifications() { return notifications_; }
+  ShortcutHelp& shortcut_help() { return help_; }
 
-  enum class StripTab { Illumination, Photometric };
+  enum class StripTab { Illumination, Photometric, Session };
   // The tab to bring to the front on the next draw (the tab bar remembers the operator's choice).
   void select_tab(StripTab tab) { requested_tab_ = tab; }
+  StripTab current_tab() const { return current_tab_; }
 
 private:
   void handle_shortcuts(const Snapshot& snapshot);
   void draw_strip(const Snapshot& snapshot);
+  void run_shortcut(ShortcutAction action, const Snapshot& snapshot);
 
   CommandSink post_;
   ControlBar controls_;
@@ -81,7 +101,12 @@ private:
   PhotometricPanel photometric_;
   TrajectoryPanel view3d_;
   StatusBar status_;
+  SessionPanel session_;
+  SessionActions session_actions_;
+  NotificationArea notifications_;
+  ShortcutHelp help_;
   std::optional<StripTab> requested_tab_;
+  StripTab current_tab_ = StripTab::Illumination;
   Layout layout_;
 };
 

@@ -4,6 +4,8 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -14,6 +16,7 @@
 #include "frontends/frontend_error.hpp"
 #include "frontends/headless_frontend.hpp"
 #include "frontends/windowed_frontend.hpp"
+#include "nirslam/config/ui_preferences.hpp"
 #include "nirslam/worker/worker.hpp"
 
 namespace nirslam::app {
@@ -27,7 +30,10 @@ struct GuiOptions {
   std::string size;        // "WxH"; empty: the front end's default
   bool fast = false;       // windowed: process as fast as possible instead of at recorded speed
   bool loop = false;       // restart the source at its end
-  std::string tab = "illumination";  // the strip tab shown first
+  std::string tab;                     // the strip tab shown first; empty: illumination, or as saved
+  bool source_given = false;           // a SOURCE was on the command line (else: the last one, windowed)
+  bool no_settings = false;            // neither read nor write the operator's settings
+  bool ui_benchmark = false;           // headless: print UI frame times while the pipeline runs
 };
 
 struct Size {
@@ -66,17 +72,53 @@ bool has_display() {
   return set("DISPLAY") || set("WAYLAND_DISPLAY");
 }
 
+// The Session tab's Open: the same SOURCE strings as the command line, checked now (a refusal is
+// shown in the panel), opened on the worker thread (a failure there shows as a notification).
+ui::SessionActions session_actions(Worker& worker) {
+  ui::SessionActions actions;
+  actions.open_source = [&worker](const std::string& source) -> std::string {
+    try {
+      SourceFactory factory = source_factory_from_argument(source);
+      worker.post(command::SetSource{std::move(factory)});
+      worker.post(command::Start{});
+      return {};
+    } catch (const std::exception& e) {
+      return e.what();
+    }
+  };
+  return actions;
+}
+
+void print_ui_benchmark(const HeadlessResult& result, const HeadlessOptions& options, const std::string& source,
+                        const std::string& mode) {
+  // The first frames build font atlases and upload shaders: not what an operator sees.
+  std::vector<double> steady = result.ui_frame_ms;
+  const std::size_t warm_up = std::min<std::size_t>(10, steady.size() / 4);
+  steady.erase(steady.begin(), steady.begin() + static_cast<std::ptrdiff_t>(warm_up));
+  const FrameTimeSummary s = summarise_frame_times(std::move(steady));
+  std::printf("UI frame times, %dx%d, source %s, pipeline %s, renderer %s\n", options.width, options.height,
+              source.c_str(), mode.c_str(), result.renderer.c_str());
+  std::printf("  %zu UI frames (after %zu warm-up): mean %.2f ms, median %.2f, p95 %.2f, p99 %.2f, max %.2f ms\n",
+              s.frames, warm_up, s.mean_ms, s.median_ms, s.p95_ms, s.p99_ms, s.max_ms);
+  std::printf("  UI %.1f frames/s while the worker processed %.1f frames/s (%lld frames)\n", s.fps, result.worker_fps,
+              static_cast<long long>(result.frames_processed));
+}
+
 int headless(Worker& worker, const GuiOptions& options, const std::filesystem::path& screenshot) {
   HeadlessOptions headless_options;
+  headless_options.benchmark = options.ui_benchmark;
+  headless_options.session_actions = session_actions(worker);
   headless_options.frames = options.frames;
   headless_options.screenshot = screenshot;
-  headless_options.photometric_tab = options.tab == "photometric";
+  headless_options.tab = options.tab;
   if (!options.size.empty()) {
     const Size size = *parse_size(options.size);
     headless_options.width = size.width;
     headless_options.height = size.height;
   }
   const HeadlessResult result = run_headless(worker, headless_options);
+  if (options.ui_benchmark)
+    print_ui_benchmark(result, headless_options, options.source, std::string(to_string(app_config().worker.pipeline.mode)));
   if (result.final_state == WorkerState::Failed) {
     spdlog::error("the source failed: {}", result.message);
     std::printf("Screenshot of the failure written to %s\n", result.screenshot.string().c_str());
@@ -90,13 +132,34 @@ int headless(Worker& worker, const GuiOptions& options, const std::filesystem::p
   return 0;
 }
 
-int run_gui(const GuiOptions& options) {
-  const SourceFactory factory = source_factory_from_argument(options.source);
-  const bool built_in = is_built_in_sequence(options.source);
+int run_gui(GuiOptions options) {
   const bool windowed = !options.headless;
+  // A window remembers the operator's choices; headless runs (tests, reports) stay reproducible
+  // and neither read nor write them.
+  const bool use_settings = windowed && !options.no_settings;
+  const std::filesystem::path settings_file = default_preferences_path();
+  LoadedPreferences settings;
+  if (use_settings) settings = load_preferences(settings_file);
+  for (const std::string& warning : settings.warnings) spdlog::warn("{}", warning);
+  std::vector<std::string> startup_warnings = settings.warnings;
+
+  SourceFactory factory;
+  if (use_settings && !options.source_given && !settings.preferences.last_source.empty()) {
+    try {
+      factory = source_factory_from_argument(settings.preferences.last_source);
+      options.source = settings.preferences.last_source;
+    } catch (const std::exception& e) {
+      startup_warnings.push_back(fmt::format("The last source cannot be opened again ({}); showing {} instead.",
+                                             e.what(), kDefaultSource));
+    }
+  }
+  if (!factory) factory = source_factory_from_argument(options.source);
+  const bool built_in = is_built_in_sequence(options.source);
   WorkerOptions worker_options = app_config().worker;
   // A window shows the sequence at its own pace; headless (and --fast) goes as fast as it can.
-  worker_options.pacing = windowed && !options.fast ? Pacing::RecordedSpeed : Pacing::AsFastAsPossible;
+  // The UI benchmark plays the sequence at its own pace too, as a live camera would deliver it.
+  worker_options.pacing =
+      (windowed || options.ui_benchmark) && !options.fast ? Pacing::RecordedSpeed : Pacing::AsFastAsPossible;
   worker_options.loop = options.loop || (windowed && built_in);
   Worker worker(worker_options);
   worker.post(command::SetSource{factory});
@@ -106,15 +169,30 @@ int run_gui(const GuiOptions& options) {
   }
   WindowedOptions window_options;
   window_options.title = fmt::format("nirslam — {}", options.source);
+  window_options.session_actions = session_actions(worker);
+  window_options.startup_warnings = std::move(startup_warnings);
+  UiPreferences& preferences = settings.preferences;
+  remember_source(preferences, options.source);
+  if (use_settings) {
+    window_options.preferences = &preferences;
+    window_options.size_from_preferences = options.size.empty();
+  }
   window_options.screenshot = options.screenshot;
   window_options.screenshot_after_frames = options.frames;
-  window_options.photometric_tab = options.tab == "photometric";
+  window_options.tab = options.tab;
   if (!options.size.empty()) {
     const Size size = *parse_size(options.size);
     window_options.width = size.width;
     window_options.height = size.height;
   }
   run_windowed(worker, window_options);
+  if (use_settings) {
+    try {
+      save_preferences(settings_file, preferences);
+    } catch (const std::exception& e) {
+      spdlog::warn("settings not saved: {}", e.what());
+    }
+  }
   return 0;
 }
 
@@ -125,7 +203,8 @@ void add_gui_command(CLI::App& parent, CommandAction& action) {
   CLI::App* gui = parent.add_subcommand(
       "gui", "Open the operator GUI on a dataset or a simulated scene (live feed, entropy, illumination).\n"
              "With --headless it renders offscreen (EGL, no display needed) and writes a PNG.");
-  gui->add_option("source", options->source, kSourceArgumentHelp)->capture_default_str();
+  CLI::Option* source = gui->add_option("source", options->source, std::string(kSourceArgumentHelp) +
+                                         ". Default: the last source of a window (see --no-settings), else sim:tunnel");
   gui->add_flag("--headless", options->headless, "Render offscreen without a window and write a screenshot");
   gui->add_option("--frames", options->frames,
                   "Headless: render until this many frames were processed; windowed: when to take --screenshot")
@@ -136,11 +215,19 @@ void add_gui_command(CLI::App& parent, CommandAction& action) {
   gui->add_option("--size", options->size, "Window or image size as WIDTHxHEIGHT (default 1440x900 windowed, 1280x800 headless)")
       ->check(CLI::Validator(check_size, "WxH"));
   gui->add_flag("--fast", options->fast, "Windowed: process frames as fast as possible instead of at recorded speed");
-  gui->add_option("--tab", options->tab, "The tab shown first under the feed: illumination or photometric")
-      ->check(CLI::IsMember({"illumination", "photometric"}))
-      ->capture_default_str();
+  gui->add_option("--tab", options->tab,
+                  "The tab shown first under the feed: illumination, photometric or session (default: the last one "
+                  "of a window, else illumination)")
+      ->check(CLI::IsMember({"illumination", "photometric", "session"}));
   gui->add_flag("--loop", options->loop, "Restart the source at its end (built-in sequences always loop in a window)");
-  gui->callback([&action, options] {
+  gui->add_flag("--no-settings", options->no_settings,
+                "Windowed: ignore the saved settings (last source, views, window) and do not save them "
+                "(they live in $NIRSLAM_SETTINGS, else ~/.config/nirslam/settings.json)");
+  gui->add_flag("--ui-benchmark", options->ui_benchmark,
+                "Headless: draw UI frames back to back while the pipeline runs and print their times "
+                "(mean, percentiles, UI frames/s)");
+  gui->callback([&action, options, source] {
+    options->source_given = source->count() > 0;
     action = [options] {
       try {
         return run_gui(*options);

@@ -1,6 +1,8 @@
 #include "commands/source_argument.hpp"
 
 #include <filesystem>
+#include <stdexcept>
+#include <string>
 
 #include "commands/app_config.hpp"
 #include "nirslam/common/error.hpp"
@@ -9,6 +11,24 @@
 #include "nirslam/sources/open_source.hpp"
 
 namespace nirslam::app {
+
+namespace {
+
+double parse_power(std::string text, const std::string& argument) {
+  if (!text.empty() && (text.back() == 'W' || text.back() == 'w')) text.pop_back();
+  double watts = 0.0;
+  std::size_t used = 0;
+  try {
+    watts = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || !(watts > 0.0) || watts > 1000.0)
+    throw std::invalid_argument("'" + argument + "': the lamp power after '@' must be a number of watts in (0, 1000], e.g. sim:tunnel@50W");
+  return watts;
+}
+
+}  // namespace
 
 bool is_built_in_sequence(const std::string& argument) {
   return argument == "demo" || argument == "sim" || argument.rfind("sim:", 0) == 0;
@@ -19,11 +39,16 @@ SourceFactory source_factory_from_argument(const std::string& argument) {
   if (argument == "sim" || argument.rfind("sim:", 0) == 0) {
     SimulatorOptions options;
     if (argument != "sim") {
-      const auto scene = sim::parse_scene_kind(argument.substr(4));
+      // sim:SCENE or sim:SCENE@POWER (the lamp's power at the start, in watts; "W" optional).
+      const std::string spec = argument.substr(4);
+      const std::string scene_name = spec.substr(0, spec.find('@'));
+      const auto scene = sim::parse_scene_kind(scene_name);
       if (!scene)
-        throw std::invalid_argument("unknown simulated scene '" + argument.substr(4) +
+        throw std::invalid_argument("unknown simulated scene '" + scene_name +
                                     "' (expected sim:room, sim:outdoor, sim:parking or sim:tunnel)");
       options.scene = *scene;
+      if (const auto at = spec.find('@'); at != std::string::npos)
+        options.powers_w = {parse_power(spec.substr(at + 1), argument)};
     }
     validate(options);
     return [options] { return make_simulated_source(options); };

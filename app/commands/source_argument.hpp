@@ -7,7 +7,7 @@
 namespace nirslam::app {
 
 // What a SOURCE argument on the command line names: a simulated scene ("sim:tunnel", "sim:room",
-// "sim:parking", "sim:outdoor"; "sim" is the tunnel), "demo" for the light-weight synthetic wall
+// "sim:parking", "sim:outdoor"; "sim" is the tunnel; "sim:room@20W" sets the lamp's power), "demo" for the light-weight synthetic wall
 // (fast, for tests), or a dataset path (TUM monoVO, EuRoC, image folder). The path is checked now, so a typo is reported
 // before any window opens; the source itself is opened on the worker thread.
 SourceFactory source_factory_from_argument(const std::string& argument);
@@ -19,7 +19,7 @@ bool is_built_in_sequence(const std::string& argument);
 inline constexpr const char* kDefaultSource = "sim:tunnel";
 
 inline constexpr const char* kSourceArgumentHelp =
-    "'sim:tunnel' (simulated; also sim:room, sim:parking, sim:outdoor), 'demo' (synthetic wall) or a "
+    "'sim:tunnel' (simulated; also sim:room, sim:parking, sim:outdoor; '@20W' sets the lamp power), 'demo' (synthetic wall) or a "
     "dataset folder: TUM monoVO, EuRoC (mav0/cam0) or a folder of images";
 
 }  // namespace nirslam::app

@@ -1,5 +1,7 @@
 #include "frontends/headless_frontend.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -11,6 +13,7 @@
 
 #include "frontends/egl_context.hpp"
 #include "ui/application.hpp"
+#include "ui/gl/gl.hpp"
 #include "ui/gl/shader.hpp"
 #include "ui/ui_context.hpp"
 
@@ -42,6 +45,26 @@ void write_png_rgba(const std::filesystem::path& path, const cv::Mat& rgba) {
   if (!written) throw std::runtime_error(fmt::format("cannot write screenshot {}", path.string()));
 }
 
+FrameTimeSummary summarise_frame_times(std::vector<double> frame_ms) {
+  FrameTimeSummary summary;
+  summary.frames = frame_ms.size();
+  if (frame_ms.empty()) return summary;
+  std::sort(frame_ms.begin(), frame_ms.end());
+  double total = 0.0;
+  for (const double ms : frame_ms) total += ms;
+  const auto at = [&frame_ms](double q) {
+    const auto i = static_cast<std::size_t>(std::ceil(q * static_cast<double>(frame_ms.size()))) ;
+    return frame_ms[std::min(frame_ms.size() - 1, i == 0 ? 0 : i - 1)];
+  };
+  summary.mean_ms = total / static_cast<double>(frame_ms.size());
+  summary.median_ms = at(0.5);
+  summary.p95_ms = at(0.95);
+  summary.p99_ms = at(0.99);
+  summary.max_ms = frame_ms.back();
+  summary.fps = summary.mean_ms > 0.0 ? 1000.0 / summary.mean_ms : 0.0;
+  return summary;
+}
+
 HeadlessResult run_headless(Worker& worker, const HeadlessOptions& options) {
   if (options.width < 800 || options.height < 500)
     throw std::invalid_argument(fmt::format("headless size {}x{} is too small for the UI (at least 800x500)",
@@ -56,7 +79,11 @@ HeadlessResult run_headless(Worker& worker, const HeadlessOptions& options) {
 
   ui::OffscreenUi offscreen(options.width, options.height);
   ui::Application app(shader_dir, [&worker](Command c) { worker.post(std::move(c)); });
-  if (options.photometric_tab) app.select_tab(ui::Application::StripTab::Photometric);
+  if (options.preferences != nullptr) app.apply(*options.preferences);
+  if (options.tab == "photometric") app.select_tab(ui::Application::StripTab::Photometric);
+  if (options.tab == "session") app.select_tab(ui::Application::StripTab::Session);
+  if (options.tab == "illumination") app.select_tab(ui::Application::StripTab::Illumination);
+  app.set_session_actions(options.session_actions);
 
   HeadlessResult result;
   result.renderer = egl.description();
@@ -70,14 +97,20 @@ HeadlessResult run_headless(Worker& worker, const HeadlessOptions& options) {
     const double delta = std::chrono::duration<double>(now - last_frame).count();
     last_frame = now;
     offscreen.frame([&] { app.draw(snapshot); }, delta);
+    if (options.benchmark) {
+      glFinish();  // llvmpipe renders asynchronously: count the frame when its pixels exist
+      result.ui_frame_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - now).count());
+    }
     ++result.ui_frames;
   };
 
   worker.post(command::Start{});
   std::shared_ptr<const Snapshot> shown = worker.snapshot();
+  const std::int64_t frames_at_start = shown->frames_processed;
   while (true) {
-    // About 30 UI frames a second while the worker runs, as a window would show them.
-    shown = worker.wait_for(done, std::chrono::milliseconds(33));
+    // About 30 UI frames a second while the worker runs, as a window would show them; the
+    // benchmark draws back to back, taking whatever snapshot is newest (never waiting for one).
+    shown = options.benchmark ? worker.snapshot() : worker.wait_for(done, std::chrono::milliseconds(33));
     render(*shown);
     if (done(*shown)) break;
     if (Clock::now() - started > options.timeout) {
@@ -88,6 +121,10 @@ HeadlessResult run_headless(Worker& worker, const HeadlessOptions& options) {
     }
   }
   worker.post(command::Pause{});
+  if (options.benchmark) {
+    const double seconds = std::chrono::duration<double>(Clock::now() - started).count();
+    result.worker_fps = seconds > 0.0 ? static_cast<double>(shown->frames_processed - frames_at_start) / seconds : 0.0;
+  }
   // The screenshot shows the snapshot that met the target; two more UI frames let every widget
   // settle on its final size (ImGui measures some text a frame late).
   render(*shown);

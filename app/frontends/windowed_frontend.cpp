@@ -44,12 +44,17 @@ public:
     glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
     glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
     glfwWindowHint(GLFW_SCALE_TO_MONITOR, GLFW_TRUE);
-    window_ = glfwCreateWindow(options.width, options.height, options.title.c_str(), nullptr, nullptr);
+    const UiPreferences* saved = options.size_from_preferences ? options.preferences : nullptr;
+    if (saved != nullptr && saved->window_maximised) glfwWindowHint(GLFW_MAXIMIZED, GLFW_TRUE);
+    window_ = glfwCreateWindow(saved != nullptr ? saved->window_width : options.width,
+                               saved != nullptr ? saved->window_height : options.height, options.title.c_str(), nullptr,
+                               nullptr);
     if (window_ == nullptr) {
       glfwTerminate();
       throw FrontendUnavailable("cannot open an OpenGL 3.3 core window: " + g_last_glfw_error);
     }
     glfwSetWindowSizeLimits(window_, 800, 500, GLFW_DONT_CARE, GLFW_DONT_CARE);
+    if (saved != nullptr && saved->window_x && saved->window_y) glfwSetWindowPos(window_, *saved->window_x, *saved->window_y);
     glfwMakeContextCurrent(window_);
     glfwSwapInterval(1);
   }
@@ -90,7 +95,13 @@ void run_windowed(Worker& worker, const WindowedOptions& options) {
   ui::UiContext ui({.scale = scale});
   GlfwPlatform platform(window.get());
   ui::Application app(ui::gl::find_shader_dir(), [&worker](Command c) { worker.post(std::move(c)); });
-  if (options.photometric_tab) app.select_tab(ui::Application::StripTab::Photometric);
+  if (options.preferences != nullptr) app.apply(*options.preferences);
+  if (options.tab == "photometric") app.select_tab(ui::Application::StripTab::Photometric);
+  if (options.tab == "session") app.select_tab(ui::Application::StripTab::Session);
+  if (options.tab == "illumination") app.select_tab(ui::Application::StripTab::Illumination);
+  app.set_session_actions(options.session_actions);
+  for (const std::string& warning : options.startup_warnings)
+    app.notifications().push(ui::NotificationArea::Severity::Warning, warning);
 
   worker.post(command::Start{});
   bool screenshot_pending = !options.screenshot.empty();
@@ -137,6 +148,20 @@ void run_windowed(Worker& worker, const WindowedOptions& options) {
     if (elapsed < kFramePeriod) std::this_thread::sleep_for(kFramePeriod - elapsed);
   }
   worker.post(command::Stop{});
+  if (options.preferences != nullptr) {
+    UiPreferences& saved = *options.preferences;
+    app.capture(saved);
+    GLFWwindow* w = window.get();
+    saved.window_maximised = glfwGetWindowAttrib(w, GLFW_MAXIMIZED) == GLFW_TRUE;
+    if (!saved.window_maximised) {
+      int x = 0;
+      int y = 0;
+      glfwGetWindowPos(w, &x, &y);
+      saved.window_x = x;
+      saved.window_y = y;
+      glfwGetWindowSize(w, &saved.window_width, &saved.window_height);
+    }
+  }
   spdlog::debug("window closed; worker stopped");
 }
 

@@ -3,8 +3,11 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
+#include "nirslam/config/ui_preferences.hpp"
 #include "nirslam/worker/worker.hpp"
+#include "ui/panels/session_panel.hpp"
 
 namespace nirslam::app {
 
@@ -16,7 +19,13 @@ struct WindowedOptions {
   // frames (the window stays open).
   std::filesystem::path screenshot;
   std::int64_t screenshot_after_frames = 60;
-  bool photometric_tab = false;      // open on the Photometric tab of the strip
+  std::string tab;                     // the strip tab shown first: "illumination", "photometric", "session"; empty: as saved
+  ui::SessionActions session_actions;  // how the Session tab opens sources
+  // The operator's settings: applied at start (views, tab, window position and size unless
+  // `width`/`height` were given explicitly) and updated at exit, when given.
+  UiPreferences* preferences = nullptr;
+  bool size_from_preferences = false;   // take the window size from `preferences`
+  std::vector<std::string> startup_warnings;  // shown in the window (e.g. a damaged settings file)
 };
 
 // The operator GUI in a GLFW window (OpenGL 3.3 core, vsync, ImGui GLFW + OpenGL3 backends).

@@ -1,6 +1,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <utility>
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
@@ -108,6 +109,41 @@ TEST(DefaultCommand, WithoutADisplayRendersHeadlessAndSaysWhere) {
   EXPECT_EQ(image.cols, 1280);
   EXPECT_EQ(image.rows, 800);
   EXPECT_GT(grey_stddev(image), 10.0);
+}
+
+}  // namespace
+}  // namespace nirslam::testing
+
+namespace nirslam::testing {
+namespace {
+
+// sim:SCENE@POWER sets the simulated lamp; a power that is not a number of watts is refused
+// before any window opens, naming the argument.
+TEST(GuiCommand, SimulatedLampPowerInTheSourceArgument) {
+  const fs::path dir = fresh_dir("gui_power");
+  const CommandResult ok = run_command(nirslam("gui sim:room@20W --headless --frames 3 --size 800x500 --screenshot '" +
+                                               (dir / "room20.png").string() + "'"));
+  ASSERT_EQ(ok.exit_code, 0) << ok.output;
+  const std::pair<const char*, const char*> cases[] = {{"sim:room@", "'sim:room@'"},
+                                                       {"sim:room@-5W", "must be a number of watts"},
+                                                       {"sim:room@lots", "'sim:room@lots'"},
+                                                       {"sim:cave@20W", "unknown simulated scene 'cave'"}};
+  for (const auto& [bad, says] : cases) {
+    const CommandResult r = run_command(nirslam(std::string("gui ") + bad + " --headless --frames 3"));
+    EXPECT_NE(r.exit_code, 0) << bad;
+    EXPECT_NE(r.output.find(says), std::string::npos) << r.output;
+  }
+}
+
+// The UI benchmark prints frame-time statistics; the figures themselves are for the README.
+TEST(GuiCommand, UiBenchmarkPrintsFrameTimes) {
+  const fs::path dir = fresh_dir("gui_bench");
+  const CommandResult r = run_command(nirslam("gui demo --headless --ui-benchmark --fast --frames 20 --size 800x500 "
+                                              "--screenshot '" + (dir / "bench.png").string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("UI frame times, 800x500"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("median"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("frames/s while the worker processed"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -22,7 +22,7 @@ void StatusBar::draw(const Snapshot& snapshot) {
   if (snapshot.trajectory && snapshot.trajectory->enabled)
     stages += fmt::format(" · odometry {:.1f} (mapping {:.1f})", t.odometry_ms, t.mapping_ms);
   const std::string right =
-      fmt::format("{} frames · {:.1f} fps · {} ms   |   UI {:.0f} fps   |   Space pause/resume · S step",
+      fmt::format("{} frames · {:.1f} fps · {} ms   |   UI {:.0f} fps   |   Space pause/resume · S step · H shortcuts",
                   snapshot.frames_processed, snapshot.processing_fps, stages, io.Framerate);
   const float right_width = ImGui::CalcTextSize(right.c_str()).x;
   const float right_x = ImGui::GetWindowContentRegionMax().x - right_width;

@@ -236,6 +236,15 @@ void FeedPanel::render(const Frame& frame) {
   const ImVec2 fb_scale = ImGui::GetIO().DisplayFramebufferScale;
   const int target_w = std::max(1, static_cast<int>(std::lround(view_.width() * fb_scale.x)));
   const int target_h = std::max(1, static_cast<int>(std::lround(view_.height() * fb_scale.y)));
+  const RenderKey key{uploaded_.data,
+                      {image_.min.x - view_.min.x, image_.min.y - view_.min.y, image_.max.x - view_.min.x,
+                       image_.max.y - view_.min.y},
+                      target_w,
+                      target_h,
+                      highlight_clipping,
+                      frame.max_value()};
+  if (key == rendered_) return;
+  rendered_ = key;
   target_.resize(target_w, target_h);
 
   gl::FramebufferBindingGuard guard;

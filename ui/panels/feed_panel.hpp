@@ -1,5 +1,7 @@
 #pragma once
 
+#include <cstdint>
+
 #include <filesystem>
 
 #include <imgui.h>
@@ -65,6 +67,19 @@ private:
   gl::Framebuffer target_;
   GLuint vertex_array_ = 0;
   cv::Mat uploaded_;  // the frame now in texture_; holding it keeps its buffer (and address) alive
+  // What the offscreen target last showed: when nothing of it changed (the UI draws at 60 Hz,
+  // frames arrive at 20-30), the target is composited again without re-rendering it, which on a
+  // software rasteriser is most of the panel's cost.
+  struct RenderKey {
+    const void* image = nullptr;
+    float rect[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    int target_w = 0;
+    int target_h = 0;
+    bool highlight = false;
+    std::uint32_t max_code = 0;
+    bool operator==(const RenderKey&) const = default;
+  };
+  RenderKey rendered_;
   GLint u_rect_ = -1;
   GLint u_target_size_ = -1;
   GLint u_image_ = -1;

@@ -98,6 +98,7 @@ void TrajectoryPanel::draw(const Snapshot& snapshot) {
   rebuild(*view);
   handle_input(hovered, active);
   if (follow && view->current) camera_.target = view->current->position;
+  shown_view_ = snapshot.trajectory;
   render();
   draw->AddImage(gl::texture_id(target_.texture()), view_.min, view_.max, ImVec2(0.0f, 1.0f), ImVec2(1.0f, 0.0f));
   draw->PushClipRect(view_.min, view_.max, true);
@@ -191,8 +192,14 @@ void TrajectoryPanel::rebuild(const TrajectoryView& view) {
     camera_.up = up.normalized();
     up_known_ = true;
   }
-  if (fit_pending_ || (auto_fit_ && !follow)) {
-    camera_.frame(centre, scene_radius_);
+  // Auto-framing follows a growing path in steps (with 25 % slack) rather than every frame: the
+  // view stays calm, and a still camera lets render() reuse the points layer.
+  const bool outgrown = (centre - framed_centre_).norm() + scene_radius_ > framed_radius_ ||
+                        scene_radius_ < 0.5f * framed_radius_;
+  if (fit_pending_ || (auto_fit_ && !follow && outgrown)) {
+    framed_centre_ = centre;
+    framed_radius_ = fit_pending_ ? scene_radius_ : 1.25f * scene_radius_;
+    camera_.frame(centre, framed_radius_);
     fit_pending_ = false;
   }
 
@@ -267,15 +274,19 @@ void TrajectoryPanel::rebuild(const TrajectoryView& view) {
   }
 }
 
-void TrajectoryPanel::render() {
-  const ImVec2 fb_scale = ImGui::GetIO().DisplayFramebufferScale;
-  const int target_w = std::max(1, static_cast<int>(std::lround(view_.width() * fb_scale.x)));
-  const int target_h = std::max(1, static_cast<int>(std::lround(view_.height() * fb_scale.y)));
-  target_.resize(target_w, target_h, true);
-  view_projection_ = camera_.view_projection(view_.width() / view_.height());
+void TrajectoryPanel::render_points_layer(const RenderKey& key) {
+  RenderKey layer = key;
+  layer.view = nullptr;  // the layer depends on the points, not on the poses
+  layer.keyframes = false;
+  layer.ground_truth = false;
+  layer.colouring = Colouring::Time;
+  const bool same_points = uploaded_points_ == points_uploaded_for_layer_;
+  if (layer == points_rendered_ && same_points) return;
+  points_rendered_ = layer;
+  points_uploaded_for_layer_ = uploaded_points_;
+  points_layer_.resize(key.target_w, key.target_h, true);
 
-  gl::FramebufferBindingGuard guard;
-  target_.bind();
+  points_layer_.bind();
   const ImVec4 bg = to_vec4(colours::feed_bg);
   glDisable(GL_SCISSOR_TEST);
   glDisable(GL_BLEND);
@@ -285,14 +296,46 @@ void TrajectoryPanel::render() {
   glEnable(GL_PROGRAM_POINT_SIZE);
   glClearColor(bg.x, bg.y, bg.z, 1.0f);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  if (show_points) {
+    const float size = point_size * ImGui::GetIO().DisplayFramebufferScale.x;
+    program_.use();
+    glUniformMatrix4fv(u_view_projection_, 1, GL_FALSE, key.view_projection.data());
+    // Round sprites cost a discard per fragment on a software rasteriser; at 2 px they would
+    // look square anyway.
+    glUniform1i(u_round_points_, size >= 3.0f ? 1 : 0);
+    glUniform1f(u_point_size_, size);
+    points_.draw();
+  }
+}
+
+void TrajectoryPanel::render() {
+  const ImVec2 fb_scale = ImGui::GetIO().DisplayFramebufferScale;
+  const int target_w = std::max(1, static_cast<int>(std::lround(view_.width() * fb_scale.x)));
+  const int target_h = std::max(1, static_cast<int>(std::lround(view_.height() * fb_scale.y)));
+  view_projection_ = camera_.view_projection(view_.width() / view_.height());
+  const RenderKey key{shown_view_.get(), show_points, show_keyframes, show_ground_truth, colouring, point_size,
+                      target_w, target_h, view_projection_};
+  if (key == rendered_) return;
+  rendered_ = key;
+  target_.resize(target_w, target_h, true);
+  gl::FramebufferBindingGuard guard;
+  render_points_layer(key);
+
+  target_.bind();
+  glDisable(GL_SCISSOR_TEST);
+  glDisable(GL_BLEND);
+  glDisable(GL_CULL_FACE);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LEQUAL);
+  glEnable(GL_PROGRAM_POINT_SIZE);
+  // The points layer (colour and depth) is the background the path is drawn into.
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, points_layer_.id());
+  glBlitFramebuffer(0, 0, target_w, target_h, 0, 0, target_w, target_h, GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT,
+                    GL_NEAREST);
+  target_.bind();
 
   program_.use();
   glUniformMatrix4fv(u_view_projection_, 1, GL_FALSE, view_projection_.data());  // Eigen is column-major, as GL
-  glUniform1i(u_round_points_, 1);
-  if (show_points) {
-    glUniform1f(u_point_size_, point_size * fb_scale.x);
-    points_.draw();
-  }
   glUniform1i(u_round_points_, 0);
   glUniform1f(u_point_size_, 1.0f);
   lines_.draw();

@@ -56,6 +56,8 @@ private:
   void handle_input(bool hovered, bool active);
   void rebuild(const TrajectoryView& view);
   void render();
+  struct RenderKey;
+  void render_points_layer(const RenderKey& key);
   void draw_overlays(const TrajectoryView& view);
 
   gl::Program program_;
@@ -68,6 +70,37 @@ private:
   gl::VertexBatch lines_{GL_LINES};
   gl::VertexBatch markers_{GL_POINTS};  // pose dots, so a short path still shows
   std::shared_ptr<const std::vector<MapPointSample>> uploaded_points_;
+  // What the offscreen target last showed. The worker publishes a new view with every processed
+  // frame (20-30 Hz) and the UI draws at 60 Hz: between views, and while the camera is still, the
+  // target is composited again without re-rendering 100k points on a software rasteriser.
+  struct RenderKey {
+    const TrajectoryView* view = nullptr;
+    bool points = false;
+    bool keyframes = false;
+    bool ground_truth = false;
+    Colouring colouring = Colouring::Time;
+    float point_size = 0.0f;
+    int target_w = 0;
+    int target_h = 0;
+    Eigen::Matrix4f view_projection = Eigen::Matrix4f::Zero();
+    bool operator==(const RenderKey& o) const {
+      return view == o.view && points == o.points && keyframes == o.keyframes && ground_truth == o.ground_truth &&
+             colouring == o.colouring && point_size == o.point_size && target_w == o.target_w &&
+             target_h == o.target_h && view_projection == o.view_projection;
+    }
+  };
+  RenderKey rendered_;
+  // The map points alone (colour and depth), re-rendered only when the points, the camera or
+  // the size change (points change on keyframes): a new pose then costs a copy of this layer plus
+  // the lines, not 100k point sprites.
+  gl::Framebuffer points_layer_;
+  RenderKey points_rendered_;
+  std::shared_ptr<const std::vector<MapPointSample>> points_uploaded_for_layer_;
+  // The sphere the camera was last fitted to: auto-framing refits only when the path leaves it,
+  // so the camera (and the points layer) stay still while the path grows inside it.
+  Eigen::Vector3f framed_centre_ = Eigen::Vector3f::Zero();
+  float framed_radius_ = 0.0f;
+  std::shared_ptr<const TrajectoryView> shown_view_;  // keeps rendered_.view's address unique
   Eigen::Matrix4f view_projection_ = Eigen::Matrix4f::Identity();
   ScreenRect view_;
   bool fit_pending_ = true;

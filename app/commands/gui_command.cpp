@@ -108,6 +108,7 @@ int headless(Worker& worker, const GuiOptions& options, const std::filesystem::p
   HeadlessOptions headless_options;
   headless_options.benchmark = options.ui_benchmark;
   headless_options.session_actions = session_actions(worker);
+  headless_options.current_source = options.source;
   headless_options.frames = options.frames;
   headless_options.screenshot = screenshot;
   headless_options.tab = options.tab;
@@ -170,6 +171,7 @@ int run_gui(GuiOptions options) {
   WindowedOptions window_options;
   window_options.title = fmt::format("nirslam — {}", options.source);
   window_options.session_actions = session_actions(worker);
+  window_options.current_source = options.source;
   window_options.startup_warnings = std::move(startup_warnings);
   UiPreferences& preferences = settings.preferences;
   remember_source(preferences, options.source);

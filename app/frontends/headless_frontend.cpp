@@ -84,6 +84,7 @@ HeadlessResult run_headless(Worker& worker, const HeadlessOptions& options) {
   if (options.tab == "session") app.select_tab(ui::Application::StripTab::Session);
   if (options.tab == "illumination") app.select_tab(ui::Application::StripTab::Illumination);
   app.set_session_actions(options.session_actions);
+  if (!options.current_source.empty()) app.session().set_current(options.current_source);
 
   HeadlessResult result;
   result.renderer = egl.description();

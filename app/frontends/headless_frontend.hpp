@@ -25,6 +25,7 @@ struct HeadlessOptions {
   // GPU (glFinish) so its time is the real cost, and keep every frame time in the result.
   bool benchmark = false;
   ui::SessionActions session_actions;  // how the Session tab opens sources (optional)
+  std::string current_source;          // the SOURCE the worker was given, shown in the Session tab
   const UiPreferences* preferences = nullptr;  // applied to the UI at start, when given
 };
 

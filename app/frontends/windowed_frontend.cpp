@@ -100,6 +100,7 @@ void run_windowed(Worker& worker, const WindowedOptions& options) {
   if (options.tab == "session") app.select_tab(ui::Application::StripTab::Session);
   if (options.tab == "illumination") app.select_tab(ui::Application::StripTab::Illumination);
   app.set_session_actions(options.session_actions);
+  if (!options.current_source.empty()) app.session().set_current(options.current_source);
   for (const std::string& warning : options.startup_warnings)
     app.notifications().push(ui::NotificationArea::Severity::Warning, warning);
 

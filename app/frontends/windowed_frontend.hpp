@@ -21,6 +21,7 @@ struct WindowedOptions {
   std::int64_t screenshot_after_frames = 60;
   std::string tab;                     // the strip tab shown first: "illumination", "photometric", "session"; empty: as saved
   ui::SessionActions session_actions;  // how the Session tab opens sources
+  std::string current_source;          // the SOURCE the worker was given, shown in the Session tab
   // The operator's settings: applied at start (views, tab, window position and size unless
   // `width`/`height` were given explicitly) and updated at exit, when given.
   UiPreferences* preferences = nullptr;

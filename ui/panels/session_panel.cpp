@@ -37,6 +37,7 @@ void section_title(const char* text) {
 }  // namespace
 
 void SessionPanel::select(const std::string& source) {
+  error_.clear();
   if (source.rfind("sim", 0) == 0) {
     kind_ = SourceKind::Simulator;
     const std::string spec = source.size() > 4 ? source.substr(4) : "tunnel";
@@ -95,7 +96,7 @@ void SessionPanel::draw(const Snapshot& snapshot, const CommandSink& post, const
   const float full = ImGui::GetContentRegionAvail().x;
   const float gap = ImGui::GetStyle().ItemSpacing.x * 2.0f;
   const float picker_width = std::round(0.42f * (full - 2.0f * gap));
-  const float recent_width = std::round(0.30f * (full - 2.0f * gap));
+  const float recent_width = std::round(0.28f * (full - 2.0f * gap));
   const float height = ImGui::GetContentRegionAvail().y;
 
   ImGui::BeginChild("##picker", ImVec2(picker_width, height), false);
@@ -121,9 +122,11 @@ void SessionPanel::draw_picker(const SessionActions& actions) {
   };
   kind_button("Simulator", SourceKind::Simulator);
   ImGui::SameLine();
-  kind_button("Dataset folder", SourceKind::Dataset);
+  kind_button("Dataset", SourceKind::Dataset);
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("A dataset folder: TUM monoVO, EuRoC (mav0/cam0) or a folder of images");
   ImGui::SameLine();
-  kind_button("Recorded session", SourceKind::Recording);
+  kind_button("Session", SourceKind::Recording);
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("A session recorded with nirslam (replayed with its exposures and powers)");
 
   bool submit = false;
   const float label_width = ImGui::CalcTextSize("Lamp power").x + 12.0f;
@@ -212,10 +215,12 @@ void SessionPanel::draw_playback(const Snapshot& snapshot, const CommandSink& po
   if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
     ImGui::SetTooltip("Play datasets and sessions at the pace they were captured");
   ImGui::SameLine();
-  if (ImGui::RadioButton("As fast as possible", !recorded_speed_)) {
+  if (ImGui::RadioButton("Fastest", !recorded_speed_)) {
     recorded_speed_ = false;
     post(command::SetPacing{Pacing::AsFastAsPossible});
   }
+  if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
+    ImGui::SetTooltip("Process every frame as fast as the pipeline can (batch work)");
   if (!can_post) ImGui::EndDisabled();
 
   ImGui::Spacing();
@@ -236,7 +241,9 @@ void SessionPanel::draw_playback(const Snapshot& snapshot, const CommandSink& po
   if (snapshot.source.live && snapshot.frames_dropped > 0)
     ImGui::TextColored(to_vec4(colours::banner_dark), "%lld frames dropped (the pipeline lagged)",
                        static_cast<long long>(snapshot.frames_dropped));
-  ImGui::TextColored(to_vec4(colours::text_dim), "Space start/pause · S step · O this tab · H all shortcuts");
+  ImGui::PushStyleColor(ImGuiCol_Text, to_vec4(colours::text_dim));
+  ImGui::TextWrapped("Space start/pause · S step · X stop · H all shortcuts");
+  ImGui::PopStyleColor();
 }
 
 }  // namespace nirslam::ui

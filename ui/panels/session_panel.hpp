@@ -39,6 +39,11 @@ public:
 
   // Prefills the picker from a SOURCE string (the current or last source).
   void select(const std::string& source);
+  // The source the worker has now (opened on the command line): prefilled and marked in the list.
+  void set_current(const std::string& source) {
+    select(source);
+    last_opened_ = source;
+  }
   // The SOURCE string the picker describes now ("" while incomplete).
   std::string chosen_source() const;
   SourceKind kind() const { return kind_; }

@@ -123,7 +123,8 @@ int run_gui(const GuiOptions& options) {
 void add_gui_command(CLI::App& parent, CommandAction& action) {
   auto options = std::make_shared<GuiOptions>();
   CLI::App* gui = parent.add_subcommand(
-      "gui", "Open the operator GUI on a dataset or a simulated scene (live feed, entropy, illumination).\n"
+      "gui", "Open the operator GUI on a dataset or a simulated scene: live feed, image quality, illumination advice,\n"
+             "3-D trajectory and photometric calibration.\n"
              "With --headless it renders offscreen (EGL, no display needed) and writes a PNG.");
   gui->add_option("source", options->source, kSourceArgumentHelp)->capture_default_str();
   gui->add_flag("--headless", options->headless, "Render offscreen without a window and write a screenshot");

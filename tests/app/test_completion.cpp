@@ -25,7 +25,9 @@ const fs::path kCompletionFile = fs::path(NIRSLAM_SOURCE_DIR) / "packaging/compl
 // What bash offers for the command line `line` (cursor at its end), as the function registered
 // for `nirslam` computes it.
 std::set<std::string> complete(const std::string& line, const fs::path& work_dir = fs::temp_directory_path()) {
-  const fs::path script = fresh_dir("completion_script") / "complete.sh";
+  // One folder per test: ctest runs the tests of this file in parallel processes.
+  const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  const fs::path script = fresh_dir("completion_script_" + test) / "complete.sh";
   std::ofstream(script) << "source '" << kCompletionFile.string() << "' || exit 3\n"
                         << "cd '" << work_dir.string() << "' || exit 4\n"
                         << "COMP_LINE='" << line << "'; COMP_POINT=${#COMP_LINE}\n"

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds and runs every test: a Release build with warnings as errors (unit, UI screenshot and
-# command-line tests), the unit tests under AddressSanitizer + UndefinedBehaviorSanitizer, and the
+# command-line tests), the Debian package (built, installed, used and removed: packaging/check-package.sh,
+# as root or with sudo), the unit tests under AddressSanitizer + UndefinedBehaviorSanitizer, and the
 # worker tests under ThreadSanitizer. Run from anywhere; needs packaging/install-deps.sh first.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,6 +19,9 @@ mkdir -p build
 configure build -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j"$jobs"
 ctest --test-dir build --output-on-failure -j"$jobs"
+
+section "Debian package: build, install, run from outside the source tree, remove"
+packaging/check-package.sh build
 
 section "AddressSanitizer + UndefinedBehaviorSanitizer: unit tests"
 configure build-asan -DCMAKE_BUILD_TYPE=Debug -DNIRSLAM_SANITIZE=address,undefined -DNIRSLAM_BUILD_UI=OFF

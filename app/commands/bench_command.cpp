@@ -285,8 +285,8 @@ void add_bench_command(CLI::App& parent, CommandAction& action) {
       "bench", "Run the accuracy benchmark: simulated sequences (scenes x illuminator powers) and any dataset folders "
                "through `run` in each pipeline mode; writes bench.md and bench.csv (the paper's Table 2 layout)");
   cmd->add_option("datasets", options->datasets, "Extra dataset folders (ATE when they hold groundtruth.txt)");
-  cmd->add_option("--scenes", options->scenes, "Simulated scenes")->delimiter(',')->capture_default_str();
-  cmd->add_option("--powers", options->powers, "Illuminator powers in watts")->delimiter(',')->capture_default_str();
+  cmd->add_option("--scenes", options->scenes, "Simulated scenes, comma-separated (room, outdoor, parking, tunnel)")->delimiter(',')->capture_default_str();
+  cmd->add_option("--powers", options->powers, "Illuminator powers in watts, comma-separated")->delimiter(',')->capture_default_str();
   cmd->add_option("--modes", options->modes, "Pipeline modes to compare, in order (default: odometry,calibrated)")
       ->delimiter(',');
   cmd->add_option("--frames", options->frames, "Frames per simulated sequence")->check(CLI::Range(10, 100000))->capture_default_str();

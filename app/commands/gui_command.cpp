@@ -203,7 +203,8 @@ int run_gui(GuiOptions options) {
 void add_gui_command(CLI::App& parent, CommandAction& action) {
   auto options = std::make_shared<GuiOptions>();
   CLI::App* gui = parent.add_subcommand(
-      "gui", "Open the operator GUI on a dataset or a simulated scene (live feed, entropy, illumination).\n"
+      "gui", "Open the operator GUI on a dataset or a simulated scene: live feed, image quality, illumination advice,\n"
+             "3-D trajectory and photometric calibration.\n"
              "With --headless it renders offscreen (EGL, no display needed) and writes a PNG.");
   CLI::Option* source = gui->add_option("source", options->source, std::string(kSourceArgumentHelp) +
                                          ". Default: the last source of a window (see --no-settings), else sim:tunnel");

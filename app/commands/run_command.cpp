@@ -216,10 +216,11 @@ int run_headless(const RunOptions& options) {
 void add_run_command(CLI::App& parent, CommandAction& action) {
   auto options = std::make_shared<RunOptions>();
   CLI::App* cmd = parent.add_subcommand(
-      "run", "Process a sequence headless: per-frame metrics (quality.csv), the trajectory (trajectory.txt, "
-             "keyframes.txt, points.ply), the photometric calibration (calibration/) and summary.json");
+      "run", "Process a sequence without the GUI: per-frame image quality (quality.csv), the camera path "
+             "(trajectory.txt, keyframes.txt), the map (points.ply), the photometric calibration (calibration/) "
+             "and summary.json");
   cmd->add_option("source", options->source, kSourceArgumentHelp)->capture_default_str();
-  cmd->add_option("-o,--out", options->out_dir, "Output folder")->capture_default_str();
+  cmd->add_option("-o,--out", options->out_dir, "Output folder (created when missing)")->capture_default_str();
   cmd->add_option("--mode", options->mode,
                   "Pipeline stages: quality (metrics only), odometry (plain direct odometry), calibrated "
                   "(online photometric calibration + odometry); default from the config (pipeline.mode)")

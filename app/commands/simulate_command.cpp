@@ -147,20 +147,21 @@ void add_simulate_command(CLI::App& parent, CommandAction& action) {
   auto o = std::make_shared<SimulateOptions>();
   CLI::App* cmd = parent.add_subcommand(
       "simulate",
-      "Render a ground-truth NIR sequence (TUM monoVO layout + groundtruth.txt/json) of a simulated scene");
+      "Render a simulated near-infrared sequence with full ground truth (TUM monoVO folder + groundtruth.txt/json),\n"
+      "to try the pipeline, a lamp power or a camera setting without going into the field");
   cmd->add_option("-o,--out", o->out, "Output folder")->required();
-  cmd->add_option("--scene", o->scene, "room, outdoor, parking or tunnel")->capture_default_str();
-  cmd->add_option("--motion", o->motion, "handheld, vehicle or robot")->capture_default_str();
+  cmd->add_option("--scene", o->scene, "Scene: room, outdoor, parking or tunnel")->capture_default_str();
+  cmd->add_option("--motion", o->motion, "Camera motion: handheld, vehicle or robot")->capture_default_str();
   cmd->add_option("--seed", o->sim.seed, "Seed: scene details, noise")->capture_default_str();
-  cmd->add_option("--frames", o->sim.frames, "Number of frames")->capture_default_str()->check(CLI::PositiveNumber);
-  cmd->add_option("--fps", o->sim.fps, "Frame rate")->capture_default_str()->check(CLI::PositiveNumber);
+  cmd->add_option("--frames", o->sim.frames, "Number of frames to render")->capture_default_str()->check(CLI::PositiveNumber);
+  cmd->add_option("--fps", o->sim.fps, "Frame rate, Hz")->capture_default_str()->check(CLI::PositiveNumber);
   cmd->add_option_function<std::string>(
          "--power", [o](const std::string& v) { o->powers = parse_list(v, "--power"); },
          "Illuminator power in W (0-150 in the paper); a list cycles every --power-step frames [50]");
   cmd->add_option("--power-step", o->sim.power_step_frames, "Frames per power of a --power list")->capture_default_str();
-  cmd->add_option("--width", o->sim.width, "Image width")->capture_default_str();
-  cmd->add_option("--height", o->sim.height, "Image height")->capture_default_str();
-  cmd->add_option("--camera", o->camera, "pinhole or fov")->capture_default_str();
+  cmd->add_option("--width", o->sim.width, "Image width, pixels")->capture_default_str();
+  cmd->add_option("--height", o->sim.height, "Image height, pixels")->capture_default_str();
+  cmd->add_option("--camera", o->camera, "Lens model: pinhole or fov (wide angle)")->capture_default_str();
   cmd->add_option("--hfov", o->sim.horizontal_fov_deg, "Horizontal field of view, degrees")->capture_default_str();
   cmd->add_option("--omega", o->sim.fov_omega, "FOV model parameter omega (rad)")->capture_default_str();
   cmd->add_option("--supersampling", o->sim.supersampling, "Rays per pixel side (1-4)")->capture_default_str();

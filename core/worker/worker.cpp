@@ -7,6 +7,7 @@
 #include <spdlog/spdlog.h>
 
 #include "nirslam/quality/image_quality.hpp"
+#include "nirslam/session/session_outputs.hpp"
 
 namespace nirslam {
 namespace {
@@ -88,7 +89,12 @@ void Worker::run() {
                steps_pending_ > 0;
       };
       queue_cv_.wait(lock, has_work);
-      if (exit_requested_) return;
+      if (exit_requested_) {
+        lock.unlock();
+        // Closing while recording keeps the session complete, with what the pipeline has.
+        finish_recording("the worker closed");
+        return;
+      }
       commands.swap(queue_);
       if (incoming_observer_) {
         observer_ = std::move(*incoming_observer_);
@@ -134,9 +140,11 @@ void Worker::apply(Command& command) {
             ++steps_pending_;
           }
         } else if constexpr (std::is_same_v<C, command::Stop>) {
+          if (recorder_ && !recorder_finished_) finish_recording("stopped");
           rewind_source();
           publish_state(WorkerState::Idle, "stopped");
         } else if constexpr (std::is_same_v<C, command::Reset>) {
+          if (recorder_ && !recorder_finished_) finish_recording("reset");
           rewind_source();
           history_.clear();
           frames_processed_ = 0;
@@ -158,6 +166,9 @@ void Worker::apply(Command& command) {
           state_ = next->state;
           publish(std::move(next));
         } else if constexpr (std::is_same_v<C, command::SetSource>) {
+          if (recorder_ && !recorder_finished_) finish_recording("the source changed");
+          recorder_.reset();
+          recording_status_ = {};
           source_.reset();
           history_.clear();
           frames_processed_ = 0;
@@ -210,6 +221,11 @@ void Worker::apply(Command& command) {
           next->illumination = sweep_.status();
           next->message = std::move(message);
           publish(std::move(next));
+        } else if constexpr (std::is_same_v<C, command::StartRecording>) {
+          start_recording(c);
+        } else if constexpr (std::is_same_v<C, command::StopRecording>) {
+          if (!recorder_ || recorder_finished_) return publish_recording_status("no recording is running");
+          publish_recording_status(finish_recording("stopped by the operator"));
         } else if constexpr (std::is_same_v<C, command::SetPacing>) {
           options_.pacing = c.pacing;
           pacing_origin_.reset();
@@ -283,6 +299,8 @@ void Worker::process_one_frame() {
 
   if (!frame) {
     if (options_.loop && frames_processed_ > 0) {
+      // A session's timestamps only go forward: the recording ends with the first pass.
+      if (recorder_ && !recorder_finished_) finish_recording("end of source (the source loops)");
       rewind_source();
       return;
     }
@@ -293,15 +311,17 @@ void Worker::process_one_frame() {
         if (finish_handler_) finish_handler_(*pipeline_);
       } catch (const std::exception& e) {
         spdlog::error("{}", e.what());
+        if (recorder_ && !recorder_finished_) finish_recording("end of source");
         return publish_state(WorkerState::Failed, e.what());
       }
-      auto next = copy_of_latest();
-      set_pipeline_views(*next);
-      next->state = state_ = WorkerState::Finished;
-      next->message = std::move(message);
-      return publish(std::move(next));
     }
-    return publish_state(WorkerState::Finished, message);
+    if (recorder_ && !recorder_finished_) message += "; " + finish_recording("end of source");
+    auto next = copy_of_latest();
+    if (pipeline_) set_pipeline_views(*next);
+    next->recording = recording_status_;
+    next->state = state_ = WorkerState::Finished;
+    next->message = std::move(message);
+    return publish(std::move(next));
   }
   const auto read_done = Clock::now();
 
@@ -384,6 +404,85 @@ void Worker::process_one_frame() {
       next->message = e.what();
     }
   }
+  if (recorder_ && !recorder_finished_) {
+    if (recorder_->recording()) {
+      // Queued only: the recorder's thread writes it; a full queue counts a dropped frame.
+      FrameAnnotations annotations;
+      annotations.entropy_bits = quality.entropy_bits;
+      if (stages.odometry) annotations.T_world_cam = stages.odometry->T_world_cam;
+      recording_status_ = recorder_->status();
+      next->recording = recording_status_;
+      recorder_->record(*next->frame, annotations, next);
+    } else {
+      // The recorder stopped itself (full disk, write error): finalise the session, keep going.
+      finish_recording("write error");
+      next->recording = recording_status_;
+      next->message = recording_status_.message;
+    }
+  } else {
+    next->recording = recording_status_;
+  }
+  publish(std::move(next));
+}
+
+void Worker::start_recording(const command::StartRecording& start) {
+  if (recorder_ && !recorder_finished_)
+    return publish_recording_status("already recording to " + recorder_->folder().string());
+  if (!source_) return publish_recording_status("no source selected: choose a source before recording");
+  RecordingSourceInfo info;
+  info.kind = source_->info().kind;
+  info.description = source_->info().description;
+  info.nominal_fps = source_->info().nominal_fps;
+  info.camera = source_->camera();
+  RecorderOptions options = options_.recording;
+  options.notes = start.notes;
+  try {
+    recorder_.reset();
+    recorder_ = std::make_unique<SessionRecorder>(start.folder, std::move(info), std::move(options));
+    recorder_finished_ = false;
+    recording_status_ = recorder_->status();
+    publish_recording_status(recording_status_.message);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    recorder_.reset();
+    recorder_finished_ = true;
+    recording_status_ = {};
+    recording_status_.state = RecordingStatus::State::Failed;
+    recording_status_.folder = start.folder.string();
+    recording_status_.last_error = e.what();
+    recording_status_.message = std::string("cannot start recording: ") + e.what();
+    publish_recording_status(recording_status_.message);
+  }
+}
+
+std::string Worker::finish_recording(const std::string& reason) {
+  if (!recorder_ || recorder_finished_) return recording_status_.message;
+  recorder_finished_ = true;
+  const bool failed = recorder_->status().state == RecordingStatus::State::Failed;
+  if (pipeline_ && !failed) {
+    CalibrationOutputInfo info;
+    info.source = source_ ? source_->info().description : std::string();
+    info.frames = frames_processed_;
+    const std::shared_ptr<const Snapshot> latest = snapshot();
+    if (latest->frame) {
+      info.width = latest->frame->width();
+      info.height = latest->frame->height();
+    }
+    try {
+      for (std::string& name : write_pipeline_outputs(*pipeline_, recorder_->folder(), info))
+        recorder_->add_output(std::move(name));
+    } catch (const std::exception& e) {
+      spdlog::error("session outputs: {}", e.what());
+    }
+  }
+  recording_status_ = recorder_->stop(reason);
+  return recording_status_.message;
+}
+
+void Worker::publish_recording_status(std::string message) {
+  auto next = copy_of_latest();
+  next->recording = recording_status_;
+  next->message = std::move(message);
   publish(std::move(next));
 }
 

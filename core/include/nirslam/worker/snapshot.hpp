@@ -11,6 +11,7 @@
 #include "nirslam/image/frame.hpp"
 #include "nirslam/quality/frame_metrics.hpp"
 #include "nirslam/quality/image_quality.hpp"
+#include "nirslam/session/recording_status.hpp"
 #include "nirslam/sources/source.hpp"
 #include "nirslam/worker/photometric_view.hpp"
 #include "nirslam/worker/trajectory_view.hpp"
@@ -79,6 +80,9 @@ struct Snapshot {
   // never null in snapshots the worker publishes.
   std::shared_ptr<const PhotometricView> photometric;
   std::shared_ptr<const TrajectoryView> trajectory;
+  // The session recording (command::StartRecording): state, folder, frames written and dropped,
+  // bytes, free space and minutes left, the last error. State Off when none was started.
+  RecordingStatus recording;
   std::string message;              // last status or error, for the operator
 };
 

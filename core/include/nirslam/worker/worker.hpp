@@ -4,6 +4,7 @@
 #include <condition_variable>
 #include <cstddef>
 #include <deque>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -18,6 +19,7 @@
 #include "nirslam/illumination/sweep_recorder.hpp"
 #include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/quality/frame_metrics.hpp"
+#include "nirslam/session/session_recorder.hpp"
 #include "nirslam/sources/source.hpp"
 #include "nirslam/worker/snapshot.hpp"
 
@@ -37,6 +39,7 @@ struct WorkerOptions {
   QualityOptions quality{};          // FAST threshold and coverage grid of the per-frame metrics
   IlluminationConfig illumination = default_illumination_config();  // advisor, sweep plan, priors
   PipelineOptions pipeline{};        // which stages run (mode) and their settings
+  RecorderOptions recording{};       // file format, PNG level, queue, free-space limits of recordings
 };
 
 namespace command {
@@ -57,11 +60,23 @@ struct SetPipelineMode { PipelineMode mode; };
 // The power sweep wizard (illumination/sweep_recorder.hpp). A Capture also sets the illuminator to
 // its power first, as SetIlluminatorPower does.
 struct Sweep { SweepCommand action; };
+// Records every frame processed from now on into a new session folder (session/session_recorder.hpp)
+// with the operator's notes; refused with a message when the folder is not empty, the disk has too
+// little space or a recording is running. Snapshot::recording shows its progress.
+struct StartRecording {
+  std::filesystem::path folder;
+  std::string notes;
+};
+// Ends the recording: writes the pipeline's trajectory, keyframes, points and calibration into the
+// session, then the final session.json. Also happens at the end of the source, on Stop, Reset and
+// SetSource, and when the worker closes.
+struct StopRecording {};
 }  // namespace command
 
 using Command = std::variant<command::Start, command::Pause, command::Step, command::Stop,
                              command::Reset, command::SetSource, command::SetIlluminatorPower,
-                             command::SetPacing, command::Sweep, command::SetPipelineMode>;
+                             command::SetPacing, command::Sweep, command::SetPipelineMode,
+                             command::StartRecording, command::StopRecording>;
 
 // Owns a source and the pipeline in its own thread. The UI (or a headless writer) posts commands
 // and reads the latest immutable snapshot; neither call waits for frame processing.
@@ -109,6 +124,11 @@ private:
   std::optional<Clock::time_point> pacing_deadline(double timestamp_s);
   IlluminatorController& illuminator();
   bool set_power(double watts, std::string& message);
+  void start_recording(const command::StartRecording& start);
+  // Writes the pipeline's outputs into the session (unless the recording failed: the disk is
+  // full) and finalises it; returns the status message. No-op without a recorder.
+  std::string finish_recording(const std::string& reason);
+  void publish_recording_status(std::string message);
 
   // Touched by the worker thread only.
   WorkerOptions options_;
@@ -128,6 +148,9 @@ private:
   std::deque<Clock::time_point> recent_completions_;
   std::optional<Frame> pending_frame_;  // read early, waiting for its time at recorded speed
   std::optional<std::pair<Clock::time_point, double>> pacing_origin_;  // wall time, stamp
+  std::unique_ptr<SessionRecorder> recorder_;  // while a recording runs, and until the next starts
+  bool recorder_finished_ = true;              // recorder_ has been stopped and finalised
+  RecordingStatus recording_status_;           // as last published
 
   mutable std::mutex queue_mutex_;
   std::condition_variable queue_cv_;

@@ -15,7 +15,7 @@ packages=(
   # tests, benchmarks, headless screenshots under a real X server
   libgtest-dev libgmock-dev libbenchmark-dev xvfb xauth imagemagick
   # session reports opened in a real browser (headless); the Debian package and its man page
-  chromium help2man dpkg-dev fakeroot
+  chromium help2man dpkg-dev fakeroot man-db
   # real camera data used by tests (ViSP cube sequence, OpenCV sample pairs)
   visp-images-data opencv-doc
 )

@@ -25,7 +25,11 @@ bool begin_tile(const char* name, const ScreenRect& rect, ImGuiWindowFlags flags
 }  // namespace
 
 Application::Application(const std::filesystem::path& shader_dir, CommandSink post)
-    : post_(std::move(post)), feed_(shader_dir), view3d_(shader_dir) {}
+    : post_(std::move(post)), feed_(shader_dir), view3d_(shader_dir) {
+  recording_.on_export_done = [this](bool ok, const std::string& line) {
+    notifications_.push(ok ? NotificationArea::Severity::Notice : NotificationArea::Severity::Error, line);
+  };
+}
 
 Application::Layout Application::compute_layout(ImVec2 display) const {
   const ImGuiStyle& style = ImGui::GetStyle();
@@ -46,12 +50,12 @@ Application::Layout Application::compute_layout(ImVec2 display) const {
   }
   // The measurement column: about a third of the width, readable at any window size.
   const float width = std::clamp(std::round(0.34f * w), std::min(380.0f, 0.5f * w), 600.0f);
-  const bool left_panels = panels.feed || panels.view3d || panels.illumination || panels.photometric || panels.session;
+  const bool left_panels = panels.feed || panels.view3d || panels.illumination || panels.photometric || panels.session || panels.record;
   const float split = !panels.entropy ? w : left_panels ? w - width : 0.0f;
   if (panels.entropy) layout.entropy = {ImVec2(split, top), ImVec2(w, bottom)};
   // Under the feed and the 3-D view, a strip for the illumination and photometric tabs: wide
   // enough for the plots side by side, short enough to leave the views most of the height.
-  const bool strip = panels.illumination || panels.photometric || panels.session;
+  const bool strip = panels.illumination || panels.photometric || panels.session || panels.record;
   const bool views = panels.feed || panels.view3d;
   float strip_top = bottom;
   if (strip) {
@@ -94,7 +98,7 @@ void Application::draw(const Snapshot& snapshot) {
     ImGui::End();
     ImGui::PopStyleVar();
   }
-  if (panels.illumination || panels.photometric || panels.session) draw_strip(snapshot);
+  if (panels.illumination || panels.photometric || panels.session || panels.record) draw_strip(snapshot);
   if (panels.status) {
     ImGui::PushStyleVar(ImGuiStyleVar_WindowPadding, ImVec2(10.0f, 5.0f));
     ImGui::PushStyleColor(ImGuiCol_WindowBg, to_vec4(rgba(24, 26, 30)));
@@ -119,13 +123,15 @@ void Application::draw_strip(const Snapshot& snapshot) {
   };
   const Tab tabs[] = {{StripTab::Illumination, "Illumination", panels.illumination},
                       {StripTab::Photometric, "Photometric", panels.photometric},
-                      {StripTab::Session, "Session", panels.session}};
+                      {StripTab::Session, "Session", panels.session},
+                      {StripTab::Record, "Record", panels.record}};
   const auto draw_tab = [&](StripTab tab) {
     current_tab_ = tab;
     switch (tab) {
       case StripTab::Illumination: illumination_.draw(snapshot, post_); break;
       case StripTab::Photometric: photometric_.draw(snapshot); break;
       case StripTab::Session: session_.draw(snapshot, post_, session_actions_); break;
+      case StripTab::Record: recording_.draw(snapshot, post_, session_actions_); break;
     }
   };
   int shown = 0;
@@ -168,10 +174,13 @@ void Application::apply(const UiPreferences& p) {
   session_.recent_sources = p.recent_sources;
   if (!p.last_source.empty()) session_.select(p.last_source);
   session_.set_recorded_speed(p.recorded_speed);
+  recording_.set_sessions_folder(p.sessions_folder);
   if (p.strip_tab == "photometric")
     select_tab(StripTab::Photometric);
   else if (p.strip_tab == "session")
     select_tab(StripTab::Session);
+  else if (p.strip_tab == "record")
+    select_tab(StripTab::Record);
   else
     select_tab(StripTab::Illumination);
   if (post_) {
@@ -191,10 +200,12 @@ void Application::capture(UiPreferences& p) const {
   p.view3d_colour_by_error = view3d_.colouring == TrajectoryPanel::Colouring::Error;
   p.recent_sources = session_.recent_sources;
   p.recorded_speed = session_.recorded_speed();
+  p.sessions_folder = recording_.sessions_folder();
   switch (current_tab_) {
     case StripTab::Illumination: p.strip_tab = "illumination"; break;
     case StripTab::Photometric: p.strip_tab = "photometric"; break;
     case StripTab::Session: p.strip_tab = "session"; break;
+    case StripTab::Record: p.strip_tab = "record"; break;
   }
 }
 
@@ -235,6 +246,8 @@ void Application::run_shortcut(ShortcutAction action, const Snapshot& snapshot) 
     case ShortcutAction::IlluminationTab: select_tab(StripTab::Illumination); break;
     case ShortcutAction::PhotometricTab: select_tab(StripTab::Photometric); break;
     case ShortcutAction::Help: help_.visible = !help_.visible; break;
+    case ShortcutAction::ToggleRecording: recording_.toggle_recording(snapshot, post_); break;
+    case ShortcutAction::RecordTab: select_tab(StripTab::Record); break;
   }
 }
 

@@ -15,6 +15,7 @@
 #include "ui/panels/illumination_panel.hpp"
 #include "ui/panels/notification_area.hpp"
 #include "ui/panels/photometric_panel.hpp"
+#include "ui/panels/recording_panel.hpp"
 #include "ui/panels/session_panel.hpp"
 #include "ui/panels/shortcut_help.hpp"
 #include "ui/panels/status_bar.hpp"
@@ -32,6 +33,7 @@ struct PanelSet {
   bool illumination = true;
   bool photometric = true;
   bool session = true;
+  bool record = true;
   bool view3d = true;
   bool status = true;
 };
@@ -80,10 +82,11 @@ public:
   PhotometricPanel& photometric() { return photometric_; }
   TrajectoryPanel& view3d() { return view3d_; }
   SessionPanel& session() { return session_; }
+  RecordingPanel& recording() { return recording_; }
   NotificationArea& notifications() { return notifications_; }
   ShortcutHelp& shortcut_help() { return help_; }
 
-  enum class StripTab { Illumination, Photometric, Session };
+  enum class StripTab { Illumination, Photometric, Session, Record };
   // The tab to bring to the front on the next draw (the tab bar remembers the operator's choice).
   void select_tab(StripTab tab) { requested_tab_ = tab; }
   StripTab current_tab() const { return current_tab_; }
@@ -102,6 +105,7 @@ private:
   TrajectoryPanel view3d_;
   StatusBar status_;
   SessionPanel session_;
+  RecordingPanel recording_;
   SessionActions session_actions_;
   NotificationArea notifications_;
   ShortcutHelp help_;

@@ -16,6 +16,8 @@ constexpr std::array kShortcuts = {
     Shortcut{'o', "O", "Session tab: open a source", ShortcutAction::SessionTab},
     Shortcut{'i', "I", "Illumination tab", ShortcutAction::IlluminationTab},
     Shortcut{'p', "P", "Photometric tab", ShortcutAction::PhotometricTab},
+    Shortcut{'r', "R", "record / stop recording a session", ShortcutAction::ToggleRecording},
+    Shortcut{'e', "E", "Record tab: sessions, replay, export", ShortcutAction::RecordTab},
     Shortcut{'h', "H or ?", "show or hide this list", ShortcutAction::Help},
 };
 

@@ -19,6 +19,8 @@ enum class ShortcutAction {
   SessionTab,      // O: open a source
   IlluminationTab, // I
   PhotometricTab,  // P
+  ToggleRecording, // R: record / stop recording
+  RecordTab,       // E: Record tab (sessions, export)
   Help,            // H or ?: this list
 };
 

@@ -17,6 +17,8 @@
 #include "frontends/headless_frontend.hpp"
 #include "frontends/windowed_frontend.hpp"
 #include "nirslam/config/ui_preferences.hpp"
+#include "nirslam/session/session_recovery.hpp"
+#include "ui/panels/recording_panel.hpp"
 #include "nirslam/worker/worker.hpp"
 
 namespace nirslam::app {
@@ -143,6 +145,15 @@ int run_gui(GuiOptions options) {
   if (use_settings) settings = load_preferences(settings_file);
   for (const std::string& warning : settings.warnings) spdlog::warn("{}", warning);
   std::vector<std::string> startup_warnings = settings.warnings;
+  if (use_settings) {
+    // A crash or power cut during the last recording left a session unfinished: repair it now,
+    // before the operator replays or exports it, and say so in the window.
+    const std::filesystem::path sessions = settings.preferences.sessions_folder.empty()
+                                               ? ui::default_sessions_folder()
+                                               : std::filesystem::path(settings.preferences.sessions_folder);
+    for (const RecoveryReport& report : recover_unfinished_sessions(sessions))
+      startup_warnings.push_back(fmt::format("Recovered an unfinished session: {}", report.summary));
+  }
 
   SourceFactory factory;
   if (use_settings && !options.source_given && !settings.preferences.last_source.empty()) {

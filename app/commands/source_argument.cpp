@@ -6,6 +6,8 @@
 
 #include "commands/app_config.hpp"
 #include "nirslam/common/error.hpp"
+#include "nirslam/session/session_format.hpp"
+#include "nirslam/session/session_source.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/sources/open_source.hpp"
@@ -53,8 +55,15 @@ SourceFactory source_factory_from_argument(const std::string& argument) {
     validate(options);
     return [options] { return make_simulated_source(options); };
   }
-  const std::filesystem::path path(argument);
+  // session:FOLDER names a recorded session explicitly; a folder holding session.json is one too.
+  const bool explicit_session = argument.rfind("session:", 0) == 0;
+  const std::filesystem::path path(explicit_session ? argument.substr(8) : argument);
   if (!std::filesystem::exists(path)) throw InputError(path, "no such file or folder");
+  if (explicit_session || is_session_folder(path)) {
+    if (!is_session_folder(path))
+      throw InputError(path, "not a recorded session (no session.json); record one with `nirslam record` or the GUI");
+    return [path] { return open_session_source(path); };
+  }
   return [path] { return open_source(path); };
 }
 

@@ -19,7 +19,7 @@ bool is_built_in_sequence(const std::string& argument);
 inline constexpr const char* kDefaultSource = "sim:tunnel";
 
 inline constexpr const char* kSourceArgumentHelp =
-    "'sim:tunnel' (simulated; also sim:room, sim:parking, sim:outdoor; '@20W' sets the lamp power), 'demo' (synthetic wall) or a "
-    "dataset folder: TUM monoVO, EuRoC (mav0/cam0) or a folder of images";
+    "'sim:tunnel' (simulated; also sim:room, sim:parking, sim:outdoor; '@20W' sets the lamp power), 'demo' (synthetic wall), a "
+    "dataset folder (TUM monoVO, EuRoC mav0/cam0, a folder of images) or a recorded session folder ('session:DIR')";
 
 }  // namespace nirslam::app

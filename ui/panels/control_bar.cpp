@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <imgui.h>
 
+#include "nirslam/session/session_format.hpp"
 #include "ui/theme.hpp"
 #include "ui/widgets.hpp"
 
@@ -68,6 +69,17 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
 
   vertical_separator();
   badge(state_label(state), state_colour(state));
+  // Recording is never invisible: a red REC badge with the frames written, whatever tab is open.
+  const RecordingStatus& recording = snapshot.recording;
+  if (recording.state == RecordingStatus::State::Recording || recording.state == RecordingStatus::State::Failed) {
+    ImGui::SameLine();
+    const bool failed = recording.state == RecordingStatus::State::Failed;
+    const std::string rec = failed ? std::string("REC stopped") : fmt::format("REC {}", recording.frames_written);
+    badge(rec.c_str(), failed ? colours::state_failed : colours::saturated);
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("%s\n%s free%s", recording.folder.c_str(), human_bytes(recording.free_bytes).c_str(),
+                        recording.last_error.empty() ? "" : ("\n" + recording.last_error).c_str());
+  }
 
   // The pipeline mode: which stages run. Switching restarts calibration and odometry.
   vertical_separator();

@@ -14,7 +14,7 @@ struct UiPreferences {
   std::vector<std::string> recent_sources;  // newest first, at most kMaxRecentSources
   std::string sessions_folder;              // where recordings go; empty: ~/nirslam-sessions
   std::string export_folder;                // where exports go; empty: next to the session
-  std::string strip_tab = "illumination";   // "illumination", "photometric", "session", "camera"
+  std::string strip_tab = "illumination";   // "illumination", "photometric", "session", "record"
   std::string pipeline_mode = "calibrated"; // PipelineMode name
   bool recorded_speed = true;               // datasets at their own pace (false: as fast as possible)
   bool feed_corrected = false;              // the feed shows G(I)/V instead of the raw frame

@@ -60,6 +60,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
     pipeline.odometry.light_offset = Eigen::Vector3d(offset[0], offset[1], offset[2]);
   }
   odometry.read<double>("beam_exponent", pipeline.odometry.beam_exponent, 0.0, 100.0);
+  odometry.read_flag("surface_normals", pipeline.odometry.lamp_surface_normals);
   odometry.reject_unknown_keys();
 
   YamlMapReader calibration(root["calibration"], file, "calibration");

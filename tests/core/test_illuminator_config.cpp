@@ -23,19 +23,22 @@ fs::path write_yaml(const std::string& name, const std::string& text) {
 
 TEST(IlluminatorConfig, LightOffsetBeamAndModeAreRead) {
   const PipelineConfig config = load_pipeline_config(write_yaml(
-      "keys", "pipeline:\n  mode: illuminated\nodometry:\n  light_offset: [0.01, 0.025, -0.005]\n  beam_exponent: 4.8\n"));
+      "keys", "pipeline:\n  mode: illuminated\nodometry:\n  light_offset: [0.01, 0.025, -0.005]\n  beam_exponent: 4.8\n"
+                "  surface_normals: false\n"));
   const OdometryOptions& o = config.worker.pipeline.odometry;
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Illuminated);
   EXPECT_DOUBLE_EQ(o.light_offset.x(), 0.01);
   EXPECT_DOUBLE_EQ(o.light_offset.y(), 0.025);
   EXPECT_DOUBLE_EQ(o.light_offset.z(), -0.005);
   EXPECT_DOUBLE_EQ(o.beam_exponent, 4.8);
+  EXPECT_FALSE(o.lamp_surface_normals);
 }
 
 TEST(IlluminatorConfig, ShippedDefaultsPutTheLampAtTheCameraWithoutABeamTerm) {
   const PipelineConfig config = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/pipeline.yaml");
   EXPECT_TRUE(config.worker.pipeline.odometry.light_offset.isZero());
   EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.beam_exponent, 0.0);
+  EXPECT_TRUE(config.worker.pipeline.odometry.lamp_surface_normals);
 }
 
 TEST(IlluminatorConfig, BadValuesNameTheFieldAndLine) {

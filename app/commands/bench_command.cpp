@@ -217,7 +217,8 @@ int run_bench(const BenchOptions& o) {
     for (PipelineMode m : odometry_modes()) modes.emplace_back(to_string(m));
   for (const std::string& m : modes)
     if (!parse_pipeline_mode(m) || *parse_pipeline_mode(m) == PipelineMode::Quality)
-      throw std::invalid_argument("--modes: '" + m + "' is not an odometry mode (odometry, calibrated)");
+      throw std::invalid_argument("--modes: '" + m +
+                                  "' is not an odometry mode (odometry, calibrated, illuminated, odometry-illuminated)");
   fs::create_directories(o.out_dir);
 
   std::vector<BenchSequence> sequences;
@@ -287,7 +288,7 @@ void add_bench_command(CLI::App& parent, CommandAction& action) {
   cmd->add_option("datasets", options->datasets, "Extra dataset folders (ATE when they hold groundtruth.txt)");
   cmd->add_option("--scenes", options->scenes, "Simulated scenes, comma-separated (room, outdoor, parking, tunnel)")->delimiter(',')->capture_default_str();
   cmd->add_option("--powers", options->powers, "Illuminator powers in watts, comma-separated")->delimiter(',')->capture_default_str();
-  cmd->add_option("--modes", options->modes, "Pipeline modes to compare, in order (default: odometry,calibrated)")
+  cmd->add_option("--modes", options->modes, "Pipeline modes to compare, in order (default: odometry,calibrated,illuminated)")
       ->delimiter(',');
   cmd->add_option("--frames", options->frames, "Frames per simulated sequence")->check(CLI::Range(10, 100000))->capture_default_str();
   cmd->add_option("--size", options->size, "Size of the simulated frames, WIDTHxHEIGHT")->capture_default_str();

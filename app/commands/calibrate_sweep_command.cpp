@@ -4,6 +4,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -29,7 +30,55 @@ struct CalibrateSweepOptions {
   fs::path out_dir;
   bool green = false;
   int max_valid_grey = 254;
+  bool power_sweep = false;
+  int viewpoint = 0;
 };
+
+// One image of an illuminator power sweep (sweep.csv of `nirslam simulate --sweep`).
+struct PowerSweepImage {
+  fs::path file;
+  double relative_exposure = 0.0;  // power x exposure time x gain: what scales the irradiance
+};
+
+// Reads the rows of `viewpoint` from sweep.csv (columns file, viewpoint, frame_index, timestamp_s,
+// power_w, exposure_ms, gain, mean_grey). Rows at 0 W are skipped: without the lamp the image
+// holds only the ambient light, which the proportionality does not cover.
+std::vector<PowerSweepImage> read_power_sweep(const fs::path& folder, int viewpoint) {
+  const fs::path csv = folder / "sweep.csv";
+  std::ifstream in(csv);
+  if (!in) throw InputError(csv, "cannot open (a power sweep folder holds sweep.csv, as `nirslam simulate --sweep` writes)");
+  std::string line;
+  if (!std::getline(in, line) || line.rfind("file,viewpoint,", 0) != 0)
+    throw InputError(csv, 1, "expected the header 'file,viewpoint,frame_index,timestamp_s,power_w,exposure_ms,gain,mean_grey'");
+  std::vector<PowerSweepImage> images;
+  for (int number = 2; std::getline(in, line); ++number) {
+    if (line.empty()) continue;
+    std::vector<std::string> cells;
+    std::stringstream row(line);
+    for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
+    if (cells.size() < 7) throw InputError(csv, number, "expected 8 comma-separated columns, got " + std::to_string(cells.size()));
+    double values[4] = {};
+    const char* names[4] = {"viewpoint", "power_w", "exposure_ms", "gain"};
+    const int columns[4] = {1, 4, 5, 6};
+    for (int k = 0; k < 4; ++k) {
+      try {
+        std::size_t used = 0;
+        values[k] = std::stod(cells[static_cast<std::size_t>(columns[k])], &used);
+        if (used != cells[static_cast<std::size_t>(columns[k])].size()) throw std::invalid_argument("trailing text");
+      } catch (const std::exception&) {
+        throw InputError(csv, number, std::string(names[k]) + " '" + cells[static_cast<std::size_t>(columns[k])] + "' is not a number");
+      }
+    }
+    if (static_cast<int>(values[0]) != viewpoint) continue;
+    if (!(values[1] >= 0.0) || !(values[2] > 0.0) || !(values[3] > 0.0))
+      throw InputError(csv, number, "power must not be negative, exposure and gain must be positive");
+    if (values[1] == 0.0) continue;
+    images.push_back({folder / cells[0], values[1] * values[2] * values[3]});
+  }
+  if (images.size() < 2)
+    throw InputError(csv, "fewer than 2 images with the lamp on at viewpoint " + std::to_string(viewpoint));
+  return images;
+}
 
 // The green channel of a colour file (a pixel whose red or blue channel clips has a grey value
 // no response explains); grey files are used as they are.
@@ -45,10 +94,22 @@ cv::Mat read_green_or_grey(const fs::path& file) {
 }
 
 int run_calibrate_sweep(const CalibrateSweepOptions& options) {
-  const std::vector<fs::path> files = list_image_files(options.folder);
+  std::vector<fs::path> files;
+  std::optional<std::vector<double>> times;
+  if (options.power_sweep) {
+    // Radiance proportional to the lamp's power when it is the only light: power x exposure x
+    // gain plays the part of the exposure time and resolves the gamma as known times do.
+    if (!options.times.empty()) throw InputError(options.times, "--times and --power-sweep exclude each other");
+    times.emplace();
+    for (const PowerSweepImage& image : read_power_sweep(options.folder, options.viewpoint)) {
+      files.push_back(image.file);
+      times->push_back(image.relative_exposure);
+    }
+  } else {
+    files = list_image_files(options.folder);
+  }
   if (files.empty()) throw InputError(options.folder, "no image files");
 
-  std::optional<std::vector<double>> times;
   if (!options.times.empty()) {
     std::map<std::string, double> by_name;
     for (const NamedExposureTime& t : read_exposure_times(options.times)) by_name[t.name] = t.seconds;
@@ -70,9 +131,13 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
   sweep_options.max_valid_grey = options.max_valid_grey;
   const ExposureSweepResult result = calibrate_exposure_sweep(images, times, sweep_options);
 
-  std::printf("Response calibration from an exposure sweep: %zu images in %s\n", files.size(),
+  const std::string resolution = options.power_sweep ? "illuminator power sweep (radiance proportional to the lamp's power x "
+                                                     "exposure x gain; ambient light assumed negligible)"
+                                                   : to_string(result.resolution);
+  std::printf("Response calibration from %s: %zu images in %s\n",
+              options.power_sweep ? "an illuminator power sweep" : "an exposure sweep", files.size(),
               options.folder.string().c_str());
-  std::printf("  ambiguity resolution: %s\n", to_string(result.resolution).c_str());
+  std::printf("  ambiguity resolution: %s\n", resolution.c_str());
   if (!times)
     std::printf("  warning: without exposure times the gamma is pinned only by the response basis; the ratios\n"
                 "           below are self-consistent but not reliable as exposure ratios (pass --times)\n");
@@ -111,8 +176,9 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
     const nlohmann::json summary = {
         {"response_coefficients", {c[0], c[1], c[2], c[3]}},
         {"monotonic", result.monotonic},
-        {"ambiguity_resolution", to_string(result.resolution)},
-        {"exposure_times_given", times.has_value()},
+        {"ambiguity_resolution", resolution},
+        {"exposure_times_given", times.has_value() && !options.power_sweep},
+        {"power_sweep", options.power_sweep},
         {"reference_image", files[static_cast<std::size_t>(result.reference_image)].filename().string()},
         {"residual_rms_grey", result.residual_rms_grey},
         {"points", result.point_count},
@@ -136,7 +202,8 @@ void add_calibrate_sweep_command(CLI::App& parent, CommandAction& action) {
       "Calibrate the camera response from a static exposure sweep (tripod, static scene, images with different\n"
       "exposures): the 4-coefficient response of the photometric model, the exposure ratios, the residual.\n"
       "With --times the recorded exposure times resolve the gamma/scale ambiguity; without, the exposures are\n"
-      "estimated too (reference image = 1) and the ratios are not reliable. Writes DSO's pcalib.txt and\n"
+      "estimated too (reference image = 1) and the ratios are not reliable. With --power-sweep, a static\n"
+      "illuminator power sweep instead (radiance proportional to power). Writes DSO's pcalib.txt and\n"
       "sweep_calibration.json with --out.");
   cmd->add_option("sweep_dir", options->folder, "Folder of the sweep's images")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--times", options->times,
@@ -144,6 +211,10 @@ void add_calibrate_sweep_command(CLI::App& parent, CommandAction& action) {
                   "or a fraction like 1/250)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", options->out_dir, "Folder for pcalib.txt and sweep_calibration.json");
+  cmd->add_flag("--power-sweep", options->power_sweep,
+                "sweep_dir is an illuminator power sweep (sweep.csv + images/, as `nirslam simulate --sweep` writes): "
+                "power x exposure x gain are the known exposures (the lamp must be the only light)");
+  cmd->add_option("--viewpoint", options->viewpoint, "Power sweep: which viewpoint's images to use")->capture_default_str();
   cmd->add_flag("--green", options->green, "Use the green channel of colour images instead of the grey conversion");
   cmd->add_option("--max-valid", options->max_valid_grey, "Largest grey value counted as unclipped (default 254)")
       ->check(CLI::Range(2, 255));

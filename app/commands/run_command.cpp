@@ -131,7 +131,9 @@ int run_headless(const RunOptions& options) {
   if (options.recorded_speed) worker_options.pacing = Pacing::RecordedSpeed;
   if (!options.mode.empty()) {
     const auto mode = parse_pipeline_mode(options.mode);
-    if (!mode) throw std::invalid_argument("--mode: expected quality, odometry or calibrated, got '" + options.mode + "'");
+    if (!mode)
+      throw std::invalid_argument(
+          "--mode: expected quality, odometry, calibrated, illuminated or odometry-illuminated, got '" + options.mode + "'");
     worker_options.pipeline.mode = *mode;
   }
   const PipelineMode mode = worker_options.pipeline.mode;
@@ -223,8 +225,10 @@ void add_run_command(CLI::App& parent, CommandAction& action) {
   cmd->add_option("-o,--out", options->out_dir, "Output folder (created when missing)")->capture_default_str();
   cmd->add_option("--mode", options->mode,
                   "Pipeline stages: quality (metrics only), odometry (plain direct odometry), calibrated "
-                  "(online photometric calibration + odometry); default from the config (pipeline.mode)")
-      ->check(CLI::IsMember({"quality", "odometry", "calibrated"}));
+                  "(online photometric calibration + odometry), illuminated (calibrated + the co-located lamp's "
+                  "distance and power factor), odometry-illuminated (odometry + the lamp's factor, no calibration); "
+                  "default from the config (pipeline.mode)")
+      ->check(CLI::IsMember({"quality", "odometry", "calibrated", "illuminated", "odometry-illuminated"}));
   cmd->add_flag("--realtime", options->recorded_speed,
                 "Follow the recorded timestamps instead of running flat out (config: worker.pacing)");
   cmd->add_option("--max-frames", options->max_frames, "Stop after this many frames")->check(CLI::PositiveNumber);

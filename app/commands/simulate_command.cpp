@@ -27,6 +27,7 @@ struct SimulateOptions {
   std::vector<double> light_offset;
   std::vector<double> sweep;
   std::string exposure = "auto";
+  std::string texture = "pixel";
   std::filesystem::path out;
   std::optional<std::filesystem::path> contact_sheet;
   std::optional<double> ambient;
@@ -96,6 +97,9 @@ SimulatorOptions resolve(SimulateOptions& o) {
       throw std::invalid_argument("--exposure: expected 'auto' or milliseconds, got '" + o.exposure + "'");
     }
   }
+  if (o.texture == "pixel") s.texture_filtering = TextureFiltering::PixelFootprint;
+  else if (o.texture == "distance-independent") s.texture_filtering = TextureFiltering::DistanceIndependent;
+  else throw std::invalid_argument("--texture: expected pixel or distance-independent, got '" + o.texture + "'");
   if (o.capture_rule) s.capture_rule = sim::CaptureRule{o.capture_interval_s, o.capture_distance_m};
   if (o.ambient) s.ambient_irradiance = *o.ambient;
   s.noise = !o.no_noise;
@@ -176,6 +180,17 @@ void add_simulate_command(CLI::App& parent, CommandAction& action) {
   cmd->add_option("--exposure", o->exposure, "'auto' (auto exposure) or a fixed exposure in ms")->capture_default_str();
   cmd->add_option("--max-exposure", o->sim.max_exposure_ms, "Longest exposure, ms (at most the frame period)")->capture_default_str();
   cmd->add_option("--target-grey", o->sim.target_grey, "Auto exposure's mean grey target (0-1)")->capture_default_str();
+  cmd->add_option("--ae-swing", o->sim.ae_target_swing,
+                  "Auto exposure's wandering target: its irradiance swings by exp(+-S) (0: fixed target)")
+      ->capture_default_str();
+  cmd->add_option("--ae-period", o->sim.ae_target_period_frames, "Period of the wandering target, frames")->capture_default_str();
+  cmd->add_option("--texture", o->texture,
+                  "Texture filtering: 'pixel' (to each pixel's footprint, a camera's look) or 'distance-independent' "
+                  "(to the fixed --texture-footprint on the surface, no glossy floor: radiance independent of the "
+                  "viewpoint, the ground truth of photometric calibration)")
+      ->capture_default_str();
+  cmd->add_option("--texture-footprint", o->sim.texture_footprint_m, "Finest texture detail of 'distance-independent', m")
+      ->capture_default_str();
   cmd->add_option("--max-gain", o->sim.max_gain, "Auto exposure's highest analogue gain (1: exposure only)")->capture_default_str();
   cmd->add_option("--ambient", o->ambient, "Ambient NIR irradiance, W/m^2 (default: the scene's)");
   cmd->add_option("--beam-angle", o->sim.beam_half_angle_deg, "Illuminator half-power half angle, degrees")->capture_default_str();

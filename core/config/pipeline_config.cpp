@@ -1,6 +1,7 @@
 #include "nirslam/config/pipeline_config.hpp"
 
 #include <string>
+#include <vector>
 
 #include <yaml-cpp/yaml.h>
 
@@ -36,7 +37,9 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   YamlMapReader stages(root["pipeline"], file, "pipeline");
   if (const auto mode = stages.read_text("mode")) {
     if (const auto parsed = parse_pipeline_mode(*mode)) pipeline.mode = *parsed;
-    else stages.fail_at("mode", "expected 'quality', 'odometry' or 'calibrated', got '" + *mode + "'");
+    else
+      stages.fail_at("mode", "expected 'quality', 'odometry', 'calibrated', 'illuminated' or 'odometry-illuminated', got '" +
+                                 *mode + "'");
   }
   stages.read<std::size_t>("exposure_history", pipeline.exposure_history, 2, 1'000'000);
   stages.reject_unknown_keys();
@@ -49,6 +52,15 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   odometry.read<int>("max_frames_between_keyframes", pipeline.odometry.max_frames_between_keyframes, 1, 1000);
   odometry.read<double>("affine_a_prior_known_exposure", pipeline.odometry.affine_a_prior_known_exposure, 0.0, 1e12);
   odometry.read<double>("affine_b_prior_known_exposure", pipeline.odometry.affine_b_prior_known_exposure, 0.0, 1e12);
+  // The co-located lamp (used by the 'illuminated' and 'odometry-illuminated' modes).
+  std::vector<double> offset;
+  odometry.read_list<double>("light_offset", offset, -1e3, 1e3);
+  if (odometry.has("light_offset")) {
+    if (offset.size() != 3) odometry.fail_at("light_offset", "expected 3 numbers [x, y, z], got " + std::to_string(offset.size()));
+    pipeline.odometry.light_offset = Eigen::Vector3d(offset[0], offset[1], offset[2]);
+  }
+  odometry.read<double>("beam_exponent", pipeline.odometry.beam_exponent, 0.0, 100.0);
+  odometry.read_flag("surface_normals", pipeline.odometry.lamp_surface_normals);
   odometry.reject_unknown_keys();
 
   YamlMapReader calibration(root["calibration"], file, "calibration");

@@ -25,12 +25,14 @@ void CoarseTracker::set_reference(std::shared_ptr<const ImagePyramid> pyramid, d
     const LevelCamera& cam = cameras_[static_cast<std::size_t>(l)];
     std::vector<float> sum(static_cast<std::size_t>(image.width * image.height), 0.0f);
     std::vector<int> count(sum.size(), 0);
+    std::vector<Eigen::Vector3f> normal_sum(sum.size(), Eigen::Vector3f::Zero());
     const double scale = 1.0 / static_cast<double>(1 << l);
     for (const auto& p : points) {
       const int x = static_cast<int>(std::lround((p.pixel.x() + 0.5) * scale - 0.5));
       const int y = static_cast<int>(std::lround((p.pixel.y() + 0.5) * scale - 0.5));
       if (!cam.inside(x, y, 2.0)) continue;
       sum[static_cast<std::size_t>(y * image.width + x)] += static_cast<float>(p.inverse_depth);
+      normal_sum[static_cast<std::size_t>(y * image.width + x)] += p.normal.cast<float>();
       ++count[static_cast<std::size_t>(y * image.width + x)];
     }
     auto& out = levels_[static_cast<std::size_t>(l)];
@@ -38,8 +40,12 @@ void CoarseTracker::set_reference(std::shared_ptr<const ImagePyramid> pyramid, d
       for (int x = 0; x < image.width; ++x) {
         const auto i = static_cast<std::size_t>(y * image.width + x);
         if (count[i] == 0) continue;
+        // Normals average too; unknown ones (zero) count for nothing, and a mean that is no
+        // longer near unit length (points of different surfaces) counts as unknown.
+        Eigen::Vector3f n = normal_sum[i] / static_cast<float>(count[i]);
+        n = n.norm() > 0.7f ? n.normalized().eval() : Eigen::Vector3f::Zero();
         out.push_back({static_cast<float>(x), static_cast<float>(y), sum[i] / static_cast<float>(count[i]),
-                       image.data[i][0]});
+                       image.data[i][0], n});
       }
     }
   }
@@ -69,7 +75,14 @@ int CoarseTracker::accumulate(int level, const ImagePyramid& frame, double expos
     if (!cam.inside(w.pixel.x(), w.pixel.y(), 2.0)) continue;
     ++projected;
     const Eigen::Vector3f sample = image.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
-    const double host_term = s * (p.reference_intensity - reference_b_);
+    LampFactor lamp;
+    if (options_.lamp.enabled) {
+      const Eigen::Vector3d normal = p.normal.cast<double>();
+      if (!lamp_factor(cam.unproject(Eigen::Vector2d(p.u, p.v)), p.inverse_depth, R, t, options_.lamp, lamp,
+                       p.normal.isZero() ? nullptr : &normal))
+        continue;
+    }
+    const double host_term = s * lamp.g * (p.reference_intensity - reference_b_);
     const double r = sample[0] - host_term - b;
     if (std::abs(r) > cutoff) {
       energy += cutoff * cutoff;
@@ -84,7 +97,7 @@ int CoarseTracker::accumulate(int level, const ImagePyramid& frame, double expos
     Eigen::Vector2d d_rho;
     warp_jacobians(cam, w, t, d_pose, d_rho);
     Vector8d J;
-    J.head<6>() = (sample.tail<2>().cast<double>().transpose() * d_pose).transpose();
+    J.head<6>() = (sample.tail<2>().cast<double>().transpose() * d_pose - host_term * lamp.d_log_g_d_pose).transpose();
     J[6] = -host_term;
     J[7] = -1.0;
     const double W = wg * hw;

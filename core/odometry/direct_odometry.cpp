@@ -11,6 +11,7 @@
 #include "nirslam/odometry/image_pyramid.hpp"
 #include "nirslam/odometry/immature_point.hpp"
 #include "nirslam/odometry/pixel_selector.hpp"
+#include "nirslam/odometry/surface_normals.hpp"
 #include "nirslam/odometry/window_optimizer.hpp"
 
 namespace nirslam {
@@ -120,11 +121,13 @@ struct DirectOdometry::Impl {
     wo.huber_threshold = options.huber_threshold;
     wo.gradient_weight_c = options.gradient_weight_c;
     wo.outlier_energy = options.outlier_energy;
+    wo.lamp = lamp();
     window = std::make_unique<WindowOptimizer>(cameras[0], wo);
     CoarseTrackerOptions to;
     to.huber_threshold = options.huber_threshold;
     to.gradient_weight_c = options.gradient_weight_c;
     to.iterations_per_level = options.tracking_iterations_per_level;
+    to.lamp = lamp();
     tracker = std::make_unique<CoarseTracker>(cameras, to);
     tracker->set_affine_priors(0.1 * a_prior(false), 0.1 * b_prior(false));
     immature.clear();
@@ -136,6 +139,10 @@ struct DirectOdometry::Impl {
     previous_T_cam_world.reset();
     last_a = 0.0;
     last_b = 0.0;
+  }
+
+  odometry::LampGeometry lamp() const {
+    return {options.illuminator_correction, options.light_offset, options.beam_exponent};
   }
 
   double a_prior(bool first) const {
@@ -172,6 +179,13 @@ struct DirectOdometry::Impl {
       for (const auto& p : f.points) archived_points.push_back(to_map_point(f, p, cameras[0], segment, false));
   }
 
+  // Normals for the lamp's cos(theta), from the current depths; held fixed while the window is
+  // optimised (their dependence on the neighbours' depths is left out of the Jacobians).
+  void update_surface_normals() {
+    if (!options.illuminator_correction || !options.lamp_surface_normals) return;
+    for (auto& f : window->frames()) estimate_surface_normals(cameras[0], f.points);
+  }
+
   // Points of the window in the newest keyframe, for the tracker.
   void update_tracker_reference() {
     const auto& frames_ = window->frames();
@@ -185,7 +199,7 @@ struct DirectOdometry::Impl {
         Warp w;
         if (!warp_pixel(cameras[0], R, t, p.pixel, p.inverse_depth, w)) continue;
         if (!cameras[0].inside(w.pixel.x(), w.pixel.y(), 2.0)) continue;
-        points.push_back({w.pixel, w.rho_target});
+        points.push_back({w.pixel, w.rho_target, p.normal ? (R * *p.normal).eval() : Eigen::Vector3d::Zero()});
       }
     }
     tracker->set_reference(ref.pyramid, ref.state.affine_a, ref.state.affine_b, ref.exposure, points);
@@ -383,6 +397,7 @@ struct DirectOdometry::Impl {
 
   void map_keyframe() {
     activate_points();
+    update_surface_normals();
     window->optimize(options.window_iterations);
     // Points the newest keyframe no longer sees leave the window: those still fitting two
     // keyframes go into the prior, the rest are dropped below.
@@ -648,7 +663,14 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
   result.segment = impl_->segment;
   if (frame.exposure && !(*frame.exposure > 0.0))
     throw std::invalid_argument("OdometryFrame.exposure: must be positive");
-  const double exposure = frame.exposure.value_or(1.0);
+  if (frame.illuminator_power_w && !(*frame.illuminator_power_w >= 0.0))
+    throw std::invalid_argument("OdometryFrame.illuminator_power_w: must not be negative");
+  // The brightness factor of the frame: its exposure and, with the lamp's correction, the lamp's
+  // power (the only light: irradiance scales with it). A lamp that is off or says nothing
+  // counts as 1, so the affine brightness absorbs what changed.
+  double exposure = frame.exposure.value_or(1.0);
+  if (options_.illuminator_correction && frame.illuminator_power_w && *frame.illuminator_power_w > 0.0)
+    exposure *= *frame.illuminator_power_w;
   if (impl_->phase == Impl::Phase::Initialising && impl_->initializer->state() != InitializerState::Tracking)
     impl_->exposure_known = frame.exposure.has_value();
 

@@ -49,13 +49,28 @@ std::vector<PairCache> make_pairs(const std::vector<WindowFrame>& frames) {
   return pairs;
 }
 
-// Maps the 8 relative parameters (xi of T_target_host, a_t, b_t) to the host's 8 parameters.
-Matrix8d host_map(const PairCache& p) {
-  Matrix8d M = Matrix8d::Zero();
+// A residual's derivatives by the pair's 9 relative parameters (xi of T_target_host, a_t, b_t,
+// b_h): the first 8 are the target's own; b_h is kept apart because its derivative s g (I_h - b_h)
+// / (I_h - b_h) = s g carries the point's lamp factor g, so no per-pair constant maps it.
+using Vector9d = Eigen::Matrix<double, 9, 1>;
+using Matrix9d = Eigen::Matrix<double, 9, 9>;
+using Matrix89d = Eigen::Matrix<double, 8, 9>;
+
+// Maps the 9 relative parameters to the host's 8 parameters (xi_h, a_h, b_h).
+Matrix89d host_map(const PairCache& p) {
+  Matrix89d M = Matrix89d::Zero();
   M.topLeftCorner<6, 6>() = -p.adjoint_jacobian.transpose();
   M(6, 6) = -1.0;
-  M(7, 7) = -p.affine.scale;
+  M(7, 8) = 1.0;
   return M;
+}
+
+// The lamp's factor g for a point seen from a pair at the current state (1 when off).
+double lamp_value(const WindowOptions& o, const LevelCamera& camera, const WindowPoint& point, const Eigen::Matrix3d& R,
+                  const Eigen::Vector3d& t) {
+  return o.lamp.enabled ? lamp_factor_value(camera.unproject(point.pixel), point.inverse_depth, R, t, o.lamp,
+                                            point.normal ? &*point.normal : nullptr)
+                        : 1.0;
 }
 
 // Runs body(begin, end, worker) over [0, count) on up to two threads (the machine has two
@@ -164,6 +179,7 @@ double WindowOptimizer::energy() {
         const PyramidLevel& target = frames_[static_cast<std::size_t>(t)].pyramid->level(0);
         double energy = 0.0;
         bool in_view = true;
+        const double g = lamp_value(options_, camera_, point, p.R, p.t);
         for (int i = 0; i < kPatternSize && in_view; ++i) {
           const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(kPattern[static_cast<std::size_t>(i)][0],
                                                                     kPattern[static_cast<std::size_t>(i)][1]);
@@ -175,7 +191,8 @@ double WindowOptimizer::energy() {
           }
           const Eigen::Vector3f s =
               target.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
-          const double r = s[0] - p.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host) -
+          const double r = s[0] -
+                           g * p.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host) -
                            p.affine.b_target;
           const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()));
           const double hw = huber_weight(r, k);
@@ -215,16 +232,16 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
   H.setZero(N, N);
   b.setZero(N);
   const auto pairs = make_pairs(frames_);
-  std::vector<Matrix8d> host_maps(n * n);
+  std::vector<Matrix89d> host_maps(n * n);
   for (std::size_t i = 0; i < n * n; ++i)
     if (pairs[i].valid) host_maps[i] = host_map(pairs[i]);
   const double k = options_.huber_threshold;
   const double c2 = options_.gradient_weight_c * options_.gradient_weight_c;
   const double outlier = options_.outlier_energy * kPatternSize;
 
-  // Relative (8x8) blocks per pair, mapped to host/target at the end, as DSO accumulates.
-  std::vector<Matrix8d> H_rel(n * n, Matrix8d::Zero());
-  std::vector<Vector8d> b_rel(n * n, Vector8d::Zero());
+  // Relative (9x9) blocks per pair, mapped to host/target at the end, as DSO accumulates.
+  std::vector<Matrix9d> H_rel(n * n, Matrix9d::Zero());
+  std::vector<Vector9d> b_rel(n * n, Vector9d::Zero());
   std::vector<int> target_index;
 
   auto hosts_to_use = [&](std::size_t h) {
@@ -238,15 +255,15 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
     for (auto& point : frames_[h].points) items.emplace_back(h, &point);
   }
   std::array<double, 2> energy_sum{0.0, 0.0};
-  std::array<std::vector<Matrix8d>, 2> H_rel_worker;
-  std::array<std::vector<Vector8d>, 2> b_rel_worker;
+  std::array<std::vector<Matrix9d>, 2> H_rel_worker;
+  std::array<std::vector<Vector9d>, 2> b_rel_worker;
   for (int wk = 0; wk < 2; ++wk) {
-    H_rel_worker[static_cast<std::size_t>(wk)].assign(n * n, Matrix8d::Zero());
-    b_rel_worker[static_cast<std::size_t>(wk)].assign(n * n, Vector8d::Zero());
+    H_rel_worker[static_cast<std::size_t>(wk)].assign(n * n, Matrix9d::Zero());
+    b_rel_worker[static_cast<std::size_t>(wk)].assign(n * n, Vector9d::Zero());
   }
   parallel_chunks(items.size(), [&](std::size_t begin, std::size_t end, int worker) {
-    std::vector<Matrix8d>& H_rel_local = H_rel_worker[static_cast<std::size_t>(worker)];
-    std::vector<Vector8d>& b_rel_local = b_rel_worker[static_cast<std::size_t>(worker)];
+    std::vector<Matrix9d>& H_rel_local = H_rel_worker[static_cast<std::size_t>(worker)];
+    std::vector<Vector9d>& b_rel_local = b_rel_worker[static_cast<std::size_t>(worker)];
     for (std::size_t item = begin; item < end; ++item) {
       const std::size_t h = items[item].first;
       WindowPoint& point = *items[item].second;
@@ -266,9 +283,9 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
           const PairCache& p = pairs[pair_index];
           const PyramidLevel& target = frames_[static_cast<std::size_t>(t)].pyramid->level(0);
 
-          Matrix8d H_r = Matrix8d::Zero();
-          Vector8d b_r = Vector8d::Zero();
-          Vector8d H_rp = Vector8d::Zero();
+          Matrix9d H_r = Matrix9d::Zero();
+          Vector9d b_r = Vector9d::Zero();
+          Vector9d H_rp = Vector9d::Zero();
           double H_pp = 0.0;
           double b_pp = 0.0;
           double energy = 0.0;
@@ -283,6 +300,19 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
           Matrix26d d_pose;
           Eigen::Vector2d d_rho;
           warp_jacobians(camera_, wj, p.t_jacobian, d_pose, d_rho);
+          // The lamp: g at the current state, its derivatives at the first estimates (as the
+          // warp's), from the centre pixel for the whole pattern.
+          LampFactor lamp;
+          if (options_.lamp.enabled) {
+            const Eigen::Vector3d ray = camera_.unproject(point.pixel);
+            const Eigen::Vector3d* normal = point.normal ? &*point.normal : nullptr;
+            if (!lamp_factor(ray, point.inverse_depth, p.R_jacobian, p.t_jacobian, options_.lamp, lamp, normal)) {
+              res.energy = outlier;
+              continue;
+            }
+            lamp.g = lamp_factor_value(ray, point.inverse_depth, p.R, p.t, options_.lamp, normal);
+          }
+          const double g_scale = lamp.g * p.affine.scale;
           for (int i = 0; i < kPatternSize; ++i) {
             const auto& o = kPattern[static_cast<std::size_t>(i)];
             const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(o[0], o[1]);
@@ -295,7 +325,7 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
             const Eigen::Vector3f s =
                 target.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
             const double host_term =
-                p.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host);
+                g_scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host);
             const double r = s[0] - host_term - p.affine.b_target;
             const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()));
             const double hw = huber_weight(r, k);
@@ -303,11 +333,12 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
             const double W = wg * hw;
 
             const Eigen::Vector2d g = s.tail<2>().cast<double>();
-            Vector8d J;
-            J.head<6>() = (g.transpose() * d_pose).transpose();
+            Vector9d J;
+            J.head<6>() = (g.transpose() * d_pose - host_term * lamp.d_log_g_d_pose).transpose();
             J[6] = -host_term;
             J[7] = -1.0;
-            const double J_rho = g.dot(d_rho);
+            J[8] = g_scale;
+            const double J_rho = g.dot(d_rho) - host_term * lamp.d_log_g_d_rho;
             H_r.noalias() += (W * J) * J.transpose();
             b_r += W * r * J;
             H_rp += W * J_rho * J;
@@ -320,9 +351,9 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
           res.inlier = true;
           H_rel_local[pair_index] += H_r;
           b_rel_local[pair_index] += b_r;
-          const Matrix8d& M = host_maps[pair_index];
+          const Matrix89d& M = host_maps[pair_index];
           point.H_host_point += M * H_rp;
-          res.H_target_point = H_rp;
+          res.H_target_point = H_rp.head<8>();
           point.H_pp += H_pp;
           point.b_p += b_pp;
         }
@@ -337,15 +368,16 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
     for (std::size_t t = 0; t < n; ++t) {
       if (h == t) continue;
       const std::size_t i = h * n + t;
-      const Matrix8d& M = host_maps[i];
+      const Matrix89d& M = host_maps[i];
       const auto ih = static_cast<Eigen::Index>(8 * h);
       const auto it = static_cast<Eigen::Index>(8 * t);
+      const Eigen::Matrix<double, 9, 8> H_rel_target = H_rel[i].leftCols<8>();  // columns of the target's 8
       H.block<8, 8>(ih, ih) += M * H_rel[i] * M.transpose();
-      H.block<8, 8>(ih, it) += M * H_rel[i];
-      H.block<8, 8>(it, ih) += H_rel[i] * M.transpose();
-      H.block<8, 8>(it, it) += H_rel[i];
+      H.block<8, 8>(ih, it) += M * H_rel_target;
+      H.block<8, 8>(it, ih) += H_rel_target.transpose() * M.transpose();
+      H.block<8, 8>(it, it) += H_rel[i].topLeftCorner<8, 8>();
       b.segment<8>(ih) += M * b_rel[i];
-      b.segment<8>(it) += b_rel[i];
+      b.segment<8>(it) += b_rel[i].head<8>();
     }
   }
 
@@ -602,7 +634,11 @@ bool WindowOptimizer::optimize_point(int host_index, WindowPoint& point, int ite
       double H_r = 0.0;
       double g_r = 0.0;
       bool in_view = true;
-      for (int i = 0; i < kPatternSize; ++i) {
+      LampFactor lamp;
+      if (options_.lamp.enabled && !lamp_factor(camera_.unproject(point.pixel), rho, tg.R, tg.t, options_.lamp, lamp,
+                                                point.normal ? &*point.normal : nullptr))
+        in_view = false;
+      for (int i = 0; i < kPatternSize && in_view; ++i) {
         const auto& o = kPattern[static_cast<std::size_t>(i)];
         const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(o[0], o[1]);
         Warp w;
@@ -611,15 +647,16 @@ bool WindowOptimizer::optimize_point(int host_index, WindowPoint& point, int ite
           break;
         }
         const Eigen::Vector3f s = tg.image->interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
-        const double r = s[0] - tg.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - tg.affine.b_host) -
-                         tg.affine.b_target;
+        const double host_term =
+            lamp.g * tg.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - tg.affine.b_host);
+        const double r = s[0] - host_term - tg.affine.b_target;
         const double W = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm())) * huber_weight(r, k);
         const double hw = huber_weight(r, k);
         e += W / hw * hw * r * r * (2.0 - hw);
         Matrix26d d_pose;
         Eigen::Vector2d d_rho;
         warp_jacobians(camera_, w, tg.t, d_pose, d_rho);
-        const double J = s.tail<2>().cast<double>().dot(d_rho);
+        const double J = s.tail<2>().cast<double>().dot(d_rho) - host_term * lamp.d_log_g_d_rho;
         H_r += W * J * J;
         g_r += W * J * r;
       }

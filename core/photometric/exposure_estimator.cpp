@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstddef>
 #include <stdexcept>
+#include <string>
 
 namespace nirslam {
 
@@ -37,6 +38,7 @@ void ExposureEstimator::set_model(const ResponseModel& response, const VignetteM
 void ExposureEstimator::reset() {
   anchors_.clear();
   model_changed_ = false;
+  illumination_modelled_ = false;
   log_exposure_.reset();
   last_ = {};
 }
@@ -93,11 +95,12 @@ bool ExposureEstimator::log_irradiance_ratio(const PatchSamples& now, const Patc
   return std::isfinite(log_ratio);
 }
 
-void ExposureEstimator::anchor_all(const TrackedFrame& tracked, double log_exposure, bool only_new) {
+void ExposureEstimator::anchor_all(const TrackedFrame& tracked, double log_exposure, bool only_new,
+                                   const std::vector<double>* log_illumination) {
   for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
     const std::int64_t id = tracked.tracks[i].id;
     if (!irradiance_valid_[i] || (only_new && anchors_.count(id) != 0)) continue;
-    anchors_[id] = Anchor{irradiance_[i], log_exposure};
+    anchors_[id] = Anchor{irradiance_[i], log_exposure, log_illumination ? (*log_illumination)[i] : 0.0};
   }
 }
 
@@ -111,7 +114,18 @@ const ExposureEstimate& ExposureEstimator::keep(const TrackedFrame& tracked, Exp
   return last_;
 }
 
-const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked) {
+const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked) { return update(tracked, nullptr); }
+
+const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, const std::vector<double>* log_illumination) {
+  if (log_illumination != nullptr && log_illumination->size() != tracked.tracks.size())
+    throw std::invalid_argument("exposure estimator: " + std::to_string(log_illumination->size()) +
+                                " light factors for " + std::to_string(tracked.tracks.size()) + " tracks");
+  if ((log_illumination != nullptr) != illumination_modelled_) {
+    // Anchors with and without the light's factor cannot be compared: restart the chain.
+    if (!anchors_.empty()) model_changed_ = true;
+    anchors_.clear();
+    illumination_modelled_ = log_illumination != nullptr;
+  }
   last_.used_tracks = 0;
   last_.inlier_tracks = 0;
   last_.log_sigma = 0.0;
@@ -144,8 +158,10 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked) {
     const auto it = anchors_.find(tracked.tracks[i].id);
     if (it == anchors_.end()) continue;
     double log_ratio = 0.0;
-    if (irradiance_valid_[i] && log_irradiance_ratio(irradiance_[i], it->second.irradiance, log_ratio)) {
-      candidates_.push_back(it->second.log_exposure + log_ratio);
+    const double light_change = log_illumination ? (*log_illumination)[i] - it->second.log_illumination : 0.0;
+    if (irradiance_valid_[i] && std::isfinite(light_change) &&
+        log_irradiance_ratio(irradiance_[i], it->second.irradiance, log_ratio)) {
+      candidates_.push_back(it->second.log_exposure + log_ratio - light_change);
       candidate_ids_.push_back(it->first);
     }
     alive.emplace(it->first, it->second);
@@ -162,13 +178,13 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked) {
     const double previous = log_exposure_.value_or(std::log(start));
     log_exposure_ = std::log(start);
     anchors_.clear();
-    anchor_all(tracked, *log_exposure_, false);
+    anchor_all(tracked, *log_exposure_, false, log_illumination);
     last_.frame_index = tracked.frame_index;
     last_.exposure = start;
     last_.log_exposure_ratio = *log_exposure_ - previous;
     last_.used_tracks = usable;
     last_.status = first ? ExposureStatus::FirstFrame : ExposureStatus::Restarted;
-    const std::string why = model_changed_ ? "response/vignette changed" : "all anchored tracks lost";
+    const std::string why = model_changed_ ? "response/vignette or light model changed" : "all anchored tracks lost";
     last_.reason = first ? (has_reported ? "first frame: exposure x gain as reported" : "first frame: exposure set to 1")
                          : (has_reported ? why + ": restarted at the reported exposure x gain"
                                          : why + ": restarted at the last estimate (scale may jump)");
@@ -213,7 +229,7 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked) {
   }
   last_.log_exposure_ratio = estimate - *log_exposure_;
   log_exposure_ = estimate;
-  anchor_all(tracked, estimate, true);
+  anchor_all(tracked, estimate, true, log_illumination);
   last_.frame_index = tracked.frame_index;
   last_.exposure = std::exp(estimate);
   last_.log_sigma = sigma;

@@ -12,7 +12,8 @@ Eigen::Vector2d backend_pixel_offset(int k) {
 }
 
 PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, double timestamp_s, double exposure,
-                                              bool exposure_known, double black_level, double saturation_level) {
+                                              bool exposure_known, double black_level, double saturation_level,
+                                              const std::vector<double>* log_illumination) {
   PhotometricKeyframe keyframe;
   keyframe.frame_index = tracked.frame_index;
   keyframe.timestamp_s = timestamp_s;
@@ -20,12 +21,16 @@ PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, doubl
   keyframe.height = tracked.height;
   keyframe.exposure = exposure;
   keyframe.exposure_known = exposure_known;
+  keyframe.illumination_modelled = log_illumination != nullptr;
   keyframe.observations.reserve(tracked.tracks.size());
   const auto at = [](const PatchSamples& s, int row, int col) { return s[row * kPatchSide + col]; };
-  for (const TrackObservation& track : tracked.tracks) {
+  for (std::size_t t = 0; t < tracked.tracks.size(); ++t) {
+    const TrackObservation& track = tracked.tracks[t];
     KeyframeObservation o;
     o.track_id = track.id;
     o.position = track.position;
+    if (log_illumination != nullptr && t < log_illumination->size())
+      o.log_illumination = static_cast<float>((*log_illumination)[t]);
     int valid = 0;
     for (int k = 0; k < kBackendPixels; ++k) {
       // Patch row/column of the pixel: the 3 x 3 grid at -3, 0, +3 around the centre (4, 4).

@@ -1,6 +1,8 @@
 #include "nirslam/photometric/online_calibration.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <stdexcept>
 #include <utility>
@@ -115,7 +117,13 @@ void OnlinePhotometricCalibration::correct(const Frame& frame, const TrackedFram
   }
 }
 
-CorrectedFrame OnlinePhotometricCalibration::process(const Frame& frame) {
+CorrectedFrame OnlinePhotometricCalibration::process(const Frame& frame) { return process_frame(frame, nullptr); }
+
+CorrectedFrame OnlinePhotometricCalibration::process(const Frame& frame, const FrameIllumination& illumination) {
+  return process_frame(frame, &illumination);
+}
+
+CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, const FrameIllumination* illumination) {
   const auto start = std::chrono::steady_clock::now();
   // A newer model from the back end: hand it to the exposure estimator and the correction.
   const std::shared_ptr<const PhotometricEstimate> model = estimate();
@@ -127,8 +135,16 @@ CorrectedFrame OnlinePhotometricCalibration::process(const Frame& frame) {
   }
 
   const TrackedFrame& tracked = tracker_.process(frame);
+  const std::vector<double>* log_illumination = nullptr;
+  if (illumination != nullptr && illumination->light_distance_m) {
+    const double power = illumination->power_w.value_or(frame.illuminator_power_w.value_or(1.0));
+    log_illumination_.resize(tracked.tracks.size());
+    for (std::size_t i = 0; i < tracked.tracks.size(); ++i)
+      log_illumination_[i] = nirslam::log_illumination(power, illumination->light_distance_m(tracked.tracks[i].position));
+    log_illumination = &log_illumination_;
+  }
   CorrectedFrame out;
-  out.estimate = exposure_.update(tracked);
+  out.estimate = exposure_.update(tracked, log_illumination);
   out.exposure = out.estimate.exposure;
   out.model_version = applied_version_;
   std::optional<double> reported;
@@ -145,7 +161,8 @@ CorrectedFrame OnlinePhotometricCalibration::process(const Frame& frame) {
       Job job;
       job.kind = Job::Keyframe;
       job.keyframe = make_photometric_keyframe(tracked, frame.timestamp_s, known ? *reported : *out.exposure, known,
-                                               options_.tracker.black_level, options_.tracker.saturation_level);
+                                               options_.tracker.black_level, options_.tracker.saturation_level,
+                                               log_illumination);
       if (!options_.background_thread) {
         run_job(job);
       } else {
@@ -207,8 +224,19 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
     e->ambiguity_detail = "exposure times x gain reported by the source hold the keyframe exposures";
   } else {
     e->ambiguity = AmbiguityResolution::Normalisation;
-    e->ambiguity_detail =
-        "first frame's exposure = 1 (relative units); gamma pinned only by the response basis and the prior";
+    if (options_.backend.gamma_gauge_weight > 0.0) {
+      char detail[200];
+      std::snprintf(detail, sizeof detail,
+                    "first frame's exposure = 1 (relative units); gamma fixed by normalisation: f^-1(%.0f/255) pulled "
+                    "to the initial response's %.4f",
+                    options_.backend.gamma_gauge_grey,
+                    options_.backend.initial_response.inverse(std::clamp(options_.backend.gamma_gauge_grey / 255.0, 0.01, 0.99)));
+      e->ambiguity_detail = detail;
+    } else {
+      e->ambiguity_detail =
+          "first frame's exposure = 1 (relative units); gamma NOT determined: pinned only by the response basis and "
+          "the prior towards the initial response";
+    }
   }
   e->status = step.status;
   e->keyframe_exposures = backend_.keyframe_exposures();

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -143,6 +144,16 @@ double photometric_residual(const InverseResponse& inverse, const Eigen::Vector3
   return G / eV - radiance;
 }
 
+double lit_photometric_residual(const InverseResponse& inverse, const Eigen::Vector3d& v, double exposure,
+                                double radiance, double grey, double radius, double illumination,
+                                PhotometricJacobian* jacobian, double* d_residual_d_log_illumination) {
+  // G / (e V a) - L is the plain residual at exposure e a; only dr/de picks up the factor a.
+  const double r = photometric_residual(inverse, v, exposure * illumination, radiance, grey, radius, jacobian);
+  if (jacobian != nullptr) (*jacobian)[7] *= illumination;
+  if (d_residual_d_log_illumination != nullptr) *d_residual_d_log_illumination = -(r + radiance);
+  return r;
+}
+
 PhotometricBackend::PhotometricBackend(PhotometricBackendOptions options)
     : options_(std::move(options)), response_(options_.initial_response), vignette_(options_.initial_vignette) {
   if (!response_.is_monotonic()) throw std::invalid_argument("photometric back end: the initial response is not monotonic");
@@ -201,14 +212,21 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
     return (*a)[0].second->track_id < (*b)[0].second->track_id;
   });
   const double mu = options_.gradient_mu;
+  // Once some keyframe of the window carries the light's factor, keyframes without it (before the
+  // caller had distances) cannot be compared with them: their observations are left out.
+  bool modelled = false;
+  for (const int k : window) modelled |= keyframes_[static_cast<std::size_t>(k)].illumination_modelled;
   for (const auto* list : usable) {
     if (static_cast<int>(points_.size()) + kBackendPixels > options_.max_points) break;
     for (int k = 0; k < kBackendPixels; ++k) {
       Point point;
       point.begin = static_cast<int>(observations_.size());
+      double log_reference = std::nan("");  // log a of the point's first usable observation
       for (const auto& [w, o] : *list) {
         const float grey = o->grey[static_cast<std::size_t>(k)];
-        if (grey < 0.0f) continue;
+        if (grey < 0.0f || !std::isfinite(o->log_illumination)) continue;  // clipped, or distance unknown
+        if (modelled && !keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])].illumination_modelled) continue;
+        if (std::isnan(log_reference)) log_reference = o->log_illumination;
         const PhotometricKeyframe& kf = keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])];
         const Eigen::Vector2d p = o->position + backend_pixel_offset(k);
         Observation ob;
@@ -216,6 +234,7 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
         ob.grey = grey;
         ob.radius = VignetteModel::radius(p.x(), p.y(), kf.width, kf.height);
         ob.gradient_weight = mu / (mu + static_cast<double>(o->gradient_sq[static_cast<std::size_t>(k)]));
+        ob.illumination = std::exp(static_cast<double>(o->log_illumination) - log_reference);
         observations_.push_back(ob);
       }
       point.end = static_cast<int>(observations_.size());
@@ -245,7 +264,7 @@ void PhotometricBackend::initialise_radiances(State& state) const {
       const double u = state.u[static_cast<std::size_t>(i)];
       const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
       const double G = 255.0 * u * u;
-      const double eV = state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius);
+      const double eV = state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * o.illumination;
       num += o.gradient_weight * k * k * eV * G;
       den += o.gradient_weight * k * k * eV * eV;
     }
@@ -263,11 +282,126 @@ double PhotometricBackend::data_cost(const State& state, double delta) const {
       const Observation& o = observations_[static_cast<std::size_t>(i)];
       const double u = state.u[static_cast<std::size_t>(i)];
       const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
-      const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * L) * k;
+      const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * o.illumination * L) * k;
       cost += o.gradient_weight * huber_cost(s, delta);
     }
   }
   return cost;
+}
+
+std::optional<Eigen::Vector4d> PhotometricBackend::data_driven_response(const std::vector<double>& exposure,
+                                                                        const std::vector<bool>& known,
+                                                                        const Eigen::Vector3d& v, double grey_low,
+                                                                        double grey_high, const Eigen::Vector4d& start) const {
+  // Debevec-Malik style: the log inverse response g(I) = log G(I) on the 256 grey levels
+  // (linear interpolation between levels), from g(I) - log L_p = log(e V a) over the observations
+  // in known-exposure keyframes, with a second-difference smoothness term; log L_p eliminated
+  // point by point (Schur), g pinned at the middle of the observed range (the additive constant
+  // it shares with the log L_p).
+  constexpr int kLevels = 256;
+  const double smoothness = 0.01 * static_cast<double>(observations_.size()) / kLevels;
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(kLevels, kLevels);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(kLevels);
+  std::unordered_map<int, double> row;  // one point's coupling of g with its log L
+  int used_points = 0;
+  for (const Point& p : points_) {
+    row.clear();
+    double h_ll = 0.0, b_l = 0.0;
+    for (int i = p.begin; i < p.end; ++i) {
+      const Observation& o = observations_[static_cast<std::size_t>(i)];
+      if (!known[static_cast<std::size_t>(o.keyframe)] || o.grey < grey_low || o.grey > grey_high) continue;
+      const double target = std::log(exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(v, o.radius) * o.illumination);
+      const int k = std::min(static_cast<int>(o.grey), kLevels - 2);
+      const double t = o.grey - k;
+      const double w = o.gradient_weight;
+      // residual g(I) - l - target, g(I) = (1 - t) g_k + t g_k+1.
+      const std::pair<int, double> terms[2] = {{k, 1.0 - t}, {k + 1, t}};
+      for (const auto& [ka, wa] : terms) {
+        for (const auto& [kb, wb] : terms) H(ka, kb) += w * wa * wb;
+        b[ka] += w * wa * target;
+        row[ka] -= w * wa;  // d/dl of the residual is -1
+      }
+      h_ll += w;
+      b_l -= w * target;
+    }
+    if (h_ll <= 0.0) continue;
+    ++used_points;
+    for (const auto& [ka, va] : row) {
+      b[ka] -= va * b_l / h_ll;
+      for (const auto& [kb, vb] : row) H(ka, kb) -= va * vb / h_ll;
+    }
+  }
+  if (used_points < options_.min_points) return std::nullopt;
+  for (int k = 1; k + 1 < kLevels; ++k) {
+    const int idx[3] = {k - 1, k, k + 1};
+    const double c2[3] = {1.0, -2.0, 1.0};
+    for (int a = 0; a < 3; ++a)
+      for (int bb = 0; bb < 3; ++bb) H(idx[a], idx[bb]) += smoothness * c2[a] * c2[bb];
+  }
+  const int pin = std::clamp(static_cast<int>(0.5 * (grey_low + grey_high)), 1, kLevels - 2);
+  H(pin, pin) += 1e6 * smoothness;
+  const Eigen::VectorXd g = H.ldlt().solve(b);
+  if (!g.allFinite()) return std::nullopt;
+
+  // Fit the model: log G_c(k) = g_k + s over the observed levels, Gauss-Newton in (c, s), steps
+  // halved until f stays monotonic.
+  const int lo = std::max(1, static_cast<int>(std::ceil(grey_low))), hi = std::min(254, static_cast<int>(grey_high));
+  if (hi - lo < 8) return std::nullopt;
+  Eigen::Vector4d c = start;
+  const auto log_G = [](const InverseResponse& inverse, int k) {
+    const double u = std::max(inverse.sqrt_irradiance(k / 255.0), 1e-6);
+    return std::log(u * u);
+  };
+  const auto fit_cost = [&](const Eigen::Vector4d& cc, double shift) {
+    const InverseResponse inverse(cc);
+    double sum = 0.0;
+    for (int k = lo; k <= hi; ++k) {
+      const double r = log_G(inverse, k) - g[k] - shift;
+      sum += r * r;
+    }
+    return sum;
+  };
+  double shift = 0.0;
+  {
+    const InverseResponse inverse(c);
+    for (int k = lo; k <= hi; ++k) shift += (log_G(inverse, k) - g[k]) / (hi - lo + 1);
+  }
+  double cost = fit_cost(c, shift);
+  for (int iteration = 0; iteration < 30; ++iteration) {
+    const InverseResponse inverse(c);
+    Eigen::Matrix<double, 5, 5> A = Eigen::Matrix<double, 5, 5>::Zero();
+    Eigen::Matrix<double, 5, 1> rhs = Eigen::Matrix<double, 5, 1>::Zero();
+    for (int k = lo; k <= hi; ++k) {
+      const double u = std::max(inverse.sqrt_irradiance(k / 255.0), 1e-6);
+      Eigen::Vector4d h, dh;
+      response_basis_in_sqrt_irradiance(u, h, dh);
+      Eigen::Matrix<double, 5, 1> J;
+      J.head<4>() = (2.0 / u) * (-h / (1.0 + c.dot(dh)));  // d log(u^2) / dc
+      J[4] = -1.0;
+      const double r = std::log(u * u) - g[k] - shift;
+      A.noalias() += J * J.transpose();
+      rhs -= J * r;
+    }
+    A.diagonal() *= 1.0 + 1e-6;
+    Eigen::Matrix<double, 5, 1> dx = A.ldlt().solve(rhs);
+    bool accepted = false;
+    for (int half = 0; half < 10 && !accepted; ++half, dx *= 0.5) {
+      const Eigen::Vector4d trial = c + dx.head<4>();
+      if (!monotonic_on_grid(trial)) continue;
+      const double trial_cost = fit_cost(trial, shift + dx[4]);
+      if (trial_cost < cost) {
+        accepted = true;
+        const double decrease = cost - trial_cost;
+        c = trial;
+        shift += dx[4];
+        cost = trial_cost;
+        if (decrease < 1e-10 * (1.0 + cost)) iteration = 30;
+      }
+    }
+    if (!accepted) break;
+  }
+  if (!c.allFinite() || !monotonic_on_grid(c)) return std::nullopt;
+  return c;
 }
 
 BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
@@ -363,6 +497,11 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   State state;
   state.c = response_.coefficients();
   state.v = vignette_.v;
+  // Steps must stay plausible (see the header), so start from a plausible V: the initial one,
+  // else no vignetting.
+  if (step.vignette_estimated && options_.vignette_monotonic && !VignetteModel{state.v}.is_plausible())
+    state.v = VignetteModel{options_.initial_vignette.v}.is_plausible() ? options_.initial_vignette.v
+                                                                                     : Eigen::Vector3d::Zero();
   state.exposure = exposure;
   update_u(state);
   initialise_radiances(state);
@@ -378,18 +517,44 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
         const double u = state.u[static_cast<std::size_t>(i)];
         const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
         abs_s.push_back(std::abs((255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] *
-                                                      vignette_at(state.v, o.radius) * state.radiance[pi]) * k));
+                                                      vignette_at(state.v, o.radius) * o.illumination * state.radiance[pi]) * k));
       }
     delta = options_.huber_k * std::max(1.4826 * median_in_place(abs_s), 0.5);
   }
+  // The gamma gauge (see the header): without any known exposure, X_gauge(c) is pulled to the
+  // initial response's value (when its weight is set).
+  const bool gamma_gauge = step.response_estimated && !any_fixed && options_.gamma_gauge_weight > 0.0;
+  const double gauge_weight = options_.gamma_gauge_weight * nobs;
+  const double gauge_y = std::clamp(options_.gamma_gauge_grey / 255.0, 0.01, 0.99);
+  const double gauge_target = [&] {
+    const double u = InverseResponse(c_prior).sqrt_irradiance(gauge_y);
+    return u * u;
+  }();
+  // X_gauge(c) and dX_gauge/dc.
+  const auto gauge = [&](const Eigen::Vector4d& c, Eigen::Vector4d* gradient) {
+    const double u = InverseResponse(c).sqrt_irradiance(gauge_y);
+    if (gradient != nullptr) {
+      Eigen::Vector4d h, dh;
+      response_basis_in_sqrt_irradiance(u, h, dh);
+      *gradient = (-2.0 * u / (1.0 + c.dot(dh))) * h;
+    }
+    return u * u;
+  };
   const auto regulariser = [&](const Eigen::Vector4d& c) {
     if (!step.response_estimated) return 0.0;
     double penalty = prior_weight * (c - c_prior).squaredNorm();
+    if (gamma_gauge) {
+      const double miss = gauge(c, nullptr) - gauge_target;
+      penalty += gauge_weight * miss * miss;
+    }
     for (const Eigen::Vector4d& dh : grid.dh) {
       const double shortfall = options_.monotonic_margin - (1.0 + c.dot(dh));
       if (shortfall > 0.0) penalty += monotonic_weight * shortfall * shortfall;
     }
     return penalty;
+  };
+  const auto vignette_acceptable = [&](const Eigen::Vector3d& v) {
+    return vignette_positive(v) && (!options_.vignette_monotonic || VignetteModel{v}.is_plausible());
   };
   const auto total_cost = [&](const State& st) { return data_cost(st, delta) + regulariser(st.c); };
   state.cost = total_cost(state);
@@ -431,7 +596,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           const double G = 255.0 * u * u;
           const double r2 = o.radius * o.radius;
           const double V = vignette_at(st.v, o.radius);
-          const double eV = e * V;
+          const double eV = e * V * o.illumination;  // the light's factor a rides with e V
           const double r = G / eV - L;
           const double eVk = eV * k;
           const double s = r * eVk;
@@ -472,6 +637,12 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
       if (step.response_estimated) {
         H.topLeftCorner<4, 4>().diagonal().array() += prior_weight;
         b.head<4>() += prior_weight * (st.c - c_prior);
+        if (gamma_gauge) {
+          Eigen::Vector4d dX;
+          const double miss = gauge(st.c, &dX) - gauge_target;
+          H.topLeftCorner<4, 4>().noalias() += gauge_weight * dX * dX.transpose();
+          b.head<4>() += gauge_weight * miss * dX;
+        }
         for (const Eigen::Vector4d& dh : grid.dh) {
           const double shortfall = options_.monotonic_margin - (1.0 + st.c.dot(dh));
           if (shortfall > -options_.monotonic_margin) {  // active or nearly: keep the model quadratic
@@ -511,11 +682,21 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           lambda *= 10.0;
           continue;
         }
-        // Backtracking: an invalid step (f not monotonic, V not positive, e <= 0) is halved first.
+        // Backtracking: an invalid step (f not monotonic, e <= 0) is halved first. The vignette part
+        // is shortened on its own to the plausible side (bisection on its length): V often rests on
+        // the boundary (flat at the rim), where rejecting whole steps would freeze c and e too.
         bool valid = false;
         dx_try = dx;
         for (int half = 0; half < 5 && !valid; ++half, dx_try *= 0.5) {
           trial.c = st.c + dx_try.head<4>();
+          if (step.vignette_estimated && !vignette_acceptable(st.v + dx_try.segment<3>(4))) {
+            double lo = 0.0, hi = 1.0;
+            for (int bisection = 0; bisection < 12; ++bisection) {
+              const double mid = 0.5 * (lo + hi);
+              (vignette_acceptable(st.v + mid * dx_try.segment<3>(4)) ? lo : hi) = mid;
+            }
+            dx_try.segment<3>(4) *= lo;
+          }
           trial.v = st.v + dx_try.segment<3>(4);
           trial.exposure.resize(st.exposure.size());
           valid = true;
@@ -525,7 +706,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
             valid &= trial.exposure[static_cast<std::size_t>(w)] > 0.0;
           }
           valid = valid && (!step.response_estimated || monotonic_on_grid(trial.c)) &&
-                  (!step.vignette_estimated || vignette_positive(trial.v));
+                  (!step.vignette_estimated || vignette_acceptable(trial.v));
           if (valid) break;
         }
         if (!valid) {
@@ -571,6 +752,13 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     updates_since_multi_start_ = 0;
     step.multi_started = true;
     std::vector<Eigen::Vector4d> starts{state.c, c_prior, Eigen::Vector4d(-1.0, 0.0, 0.0, 0.0), Eigen::Vector4d::Zero()};
+    // With known exposures, a start fitted to the data directly (see data_driven_response).
+    if (any_fixed && options_.data_driven_start) {
+      std::vector<bool> known(static_cast<std::size_t>(K));
+      for (int w = 0; w < K; ++w) known[static_cast<std::size_t>(w)] = free_index[static_cast<std::size_t>(w)] < 0;
+      if (const auto fitted = data_driven_response(state.exposure, known, state.v, step.grey_low, step.grey_high, state.c))
+        starts.push_back(*fitted);
+    }
     const int probe = std::min(options_.multi_start_probe_iterations, max_iterations);
     State best = state;
     run_lm(best, probe);
@@ -637,7 +825,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
         const double u = state.u[static_cast<std::size_t>(i)];
         const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
         const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] *
-                                              vignette_at(state.v, o.radius) * state.radiance[pi]) * k;
+                                              vignette_at(state.v, o.radius) * o.illumination * state.radiance[pi]) * k;
         if (std::abs(s) <= delta) squared += s * s, ++inliers;
       }
     step.residual_rms = inliers ? std::sqrt(squared / static_cast<double>(inliers)) : 0.0;

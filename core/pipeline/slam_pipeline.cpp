@@ -41,22 +41,43 @@ std::string_view to_string(PipelineMode mode) {
     case PipelineMode::Quality: return "quality";
     case PipelineMode::Odometry: return "odometry";
     case PipelineMode::Calibrated: return "calibrated";
+    case PipelineMode::Illuminated: return "illuminated";
+    case PipelineMode::OdometryIlluminated: return "odometry-illuminated";
   }
   return "?";
 }
 
+std::vector<PipelineMode> pipeline_modes() {
+  return {PipelineMode::Quality, PipelineMode::Odometry, PipelineMode::Calibrated, PipelineMode::Illuminated,
+          PipelineMode::OdometryIlluminated};
+}
+
 std::optional<PipelineMode> parse_pipeline_mode(std::string_view name) {
-  for (PipelineMode mode : {PipelineMode::Quality, PipelineMode::Odometry, PipelineMode::Calibrated})
+  for (PipelineMode mode : pipeline_modes())
     if (name == to_string(mode)) return mode;
   return std::nullopt;
 }
 
-std::vector<PipelineMode> odometry_modes() { return {PipelineMode::Odometry, PipelineMode::Calibrated}; }
+std::vector<PipelineMode> odometry_modes() {
+  return {PipelineMode::Odometry, PipelineMode::Calibrated, PipelineMode::Illuminated};
+}
+
+bool runs_calibration(PipelineMode mode) {
+  return mode == PipelineMode::Calibrated || mode == PipelineMode::Illuminated;
+}
+
+bool corrects_illuminator(PipelineMode mode) {
+  return mode == PipelineMode::Illuminated || mode == PipelineMode::OdometryIlluminated;
+}
 
 SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const CameraModel> camera,
                            std::optional<PhotometricTruth> truth)
     : options_(std::move(options)), camera_(std::move(camera)), truth_(std::move(truth)) {
-  if (options_.mode == PipelineMode::Calibrated)
+  options_.odometry.illuminator_correction = corrects_illuminator(options_.mode);
+  // The beam is radial in the image like the vignetting, so the calibration's halo factor holds
+  // it and the corrected frames no longer show it: only raw frames need the beam term.
+  if (runs_calibration(options_.mode)) options_.odometry.beam_exponent = 0.0;
+  if (runs_calibration(options_.mode))
     calibration_ = std::make_unique<OnlinePhotometricCalibration>(options_.calibration);
   if (options_.mode == PipelineMode::Quality) {
     odometry_off_reason_ = "this pipeline mode has no odometry";

@@ -123,6 +123,8 @@ struct Shader {
   float ambient;
   float sky;
   const std::array<float, kBeamLutSize + 1>& beam_lut;
+  float fixed_footprint = 0.0f;  // ShadingOptions::texture_footprint_m
+  bool glossy = true;            // ShadingOptions::glossy_floor
 
   float beam(float cos_alpha) const {
     if (cos_alpha <= 0.0f) return 0.0f;
@@ -199,7 +201,8 @@ struct Shader {
       n = -n;
       n_dot_d = -n_dot_d;
     }
-    const float footprint = path * pixel_angle / std::max(-n_dot_d, 0.15f);
+    const float footprint =
+        fixed_footprint > 0.0f ? fixed_footprint : path * pixel_angle / std::max(-n_dot_d, 0.15f);
     const float albedo =
         std::clamp(material_albedo(s.material, s.u, s.v, footprint, p.seed) * p.albedo_scale, 0.0f, 1.0f);
     const Vector3f l = x - slot.light;
@@ -211,7 +214,7 @@ struct Shader {
     if (albedo_out) *albedo_out = albedo;
     if (irradiance_out) *irradiance_out = irradiance;
 
-    if (mirror_candidates && scene.glossy_floor && face == 5 && std::fabs(x.z() - scene.glossy_floor->z) < 1e-3f &&
+    if (glossy && mirror_candidates && scene.glossy_floor && face == 5 && std::fabs(x.z() - scene.glossy_floor->z) < 1e-3f &&
         d.z() < 0.0f) {
       const GlossyFloor& g = *scene.glossy_floor;
       const float c = 1.0f - std::min(-d.z(), 1.0f);
@@ -247,9 +250,15 @@ struct ShadingTables {
     for (std::size_t i = 0; i < yaw.size(); ++i)
       yaw[i] = {std::cos(scene.primitives[i].yaw), std::sin(scene.primitives[i].yaw)};
   }
-  Shader shader(const Lighting& lighting) const {
-    return Shader{scene, yaw, static_cast<float>(lighting.illuminator.axial_intensity()),
-                  static_cast<float>(lighting.ambient_irradiance), static_cast<float>(lighting.sky_radiance), beam_lut};
+  Shader shader(const Lighting& lighting, const ShadingOptions& shading) const {
+    return Shader{scene,
+                  yaw,
+                  static_cast<float>(lighting.illuminator.axial_intensity()),
+                  static_cast<float>(lighting.ambient_irradiance),
+                  static_cast<float>(lighting.sky_radiance),
+                  beam_lut,
+                  static_cast<float>(shading.texture_footprint_m),
+                  shading.glossy_floor};
   }
 
   const Scene& scene;
@@ -288,11 +297,14 @@ double Illuminator::axial_intensity() const {
   return efficiency * power_w * (beam_exponent() + 1.0) / (2.0 * std::numbers::pi);
 }
 
-Renderer::Renderer(std::shared_ptr<const Scene> scene, std::shared_ptr<const CameraModel> camera, int supersampling)
-    : scene_(std::move(scene)), camera_(std::move(camera)), ss_(supersampling) {
+Renderer::Renderer(std::shared_ptr<const Scene> scene, std::shared_ptr<const CameraModel> camera, int supersampling,
+                   ShadingOptions shading)
+    : scene_(std::move(scene)), camera_(std::move(camera)), ss_(supersampling), shading_(shading) {
   if (!scene_ || !camera_) throw std::invalid_argument("renderer: scene and camera are required");
   if (ss_ < 1 || ss_ > 4) throw std::invalid_argument("renderer: supersampling must be 1..4");
   if (scene_->primitives.size() > 4096) throw std::invalid_argument("renderer: too many primitives");
+  if (!(shading_.texture_footprint_m >= 0.0 && shading_.texture_footprint_m <= 10.0))
+    throw std::invalid_argument("renderer: texture footprint must be 0..10 m");
   width_ = camera_->width();
   height_ = camera_->height();
   build_rays();
@@ -368,7 +380,7 @@ void Renderer::render(std::span<const SE3> poses, const Lighting& lighting, cv::
 
   const Scene& scene = *scene_;
   const ShadingTables tables(scene, lighting.illuminator);
-  const Shader shader = tables.shader(lighting);
+  const Shader shader = tables.shader(lighting, shading_);
 
   const std::vector<Unit> units = make_units(scene);
   std::vector<SlotState> state;
@@ -378,7 +390,7 @@ void Renderer::render(std::span<const SE3> poses, const Lighting& lighting, cv::
   for (std::size_t k = 0; k < n_slots; ++k) {
     state.push_back(slot_state(poses[k], lighting.illuminator, scene));
     view_units(units, state.back().centre, views[k], order[k]);
-    if (scene.glossy_floor) view_units(units, state.back().mirror_centre, mirror_views[k], mirror_order[k]);
+    if (scene.glossy_floor && shading_.glossy_floor) view_units(units, state.back().mirror_centre, mirror_views[k], mirror_order[k]);
   }
   const int middle = slots / 2;
   const bool blur = slots > 1;
@@ -397,7 +409,7 @@ void Renderer::render(std::span<const SE3> poses, const Lighting& lighting, cv::
         const Vector3f axis = state[static_cast<std::size_t>(k)].R * tile.axis;
         const auto kk = static_cast<std::size_t>(k);
         cull(scene, units, views[kk], order[kk], axis, tile.cos_half, tile.sin_half, direct[kk]);
-        if (scene.glossy_floor)
+        if (scene.glossy_floor && shading_.glossy_floor)
           cull(scene, units, mirror_views[kk], mirror_order[kk], Vector3f(axis.x(), axis.y(), -axis.z()), tile.cos_half, tile.sin_half,
                mirrored[kk]);
       }
@@ -524,7 +536,7 @@ Renderer::PixelSample Renderer::render_pixel(const SE3& pose, const Lighting& li
   if (!ray_cam) return sample;
   const Scene& scene = *scene_;
   const ShadingTables tables(scene, lighting.illuminator);
-  const Shader shader = tables.shader(lighting);
+  const Shader shader = tables.shader(lighting, shading_);
   const SlotState st = slot_state(pose, lighting.illuminator, scene);
   std::vector<Candidate> all(scene.primitives.size());
   for (std::size_t i = 0; i < all.size(); ++i) all[i] = {static_cast<int>(i), 0.0f, 0};

@@ -9,6 +9,7 @@
 #include <string>
 #include <tuple>
 
+#include <Eigen/Dense>
 #include <opencv2/core.hpp>
 
 namespace nirslam {
@@ -65,6 +66,9 @@ void validate(const SimulatorOptions& o) {
   if (!(o.exposure_ms > 0.0)) fail("exposure must be positive");
   if (!(o.target_grey > 0.01 && o.target_grey < 0.99)) fail("auto-exposure target must be in (0.01, 0.99)");
   if (!(o.ae_damping > 0.0 && o.ae_damping <= 1.0)) fail("auto-exposure damping must be in (0, 1]");
+  if (!(o.ae_target_swing >= 0.0 && o.ae_target_swing <= 5.0)) fail("auto-exposure target swing must be in [0, 5]");
+  if (!(o.ae_target_period_frames >= 2.0)) fail("auto-exposure target period must be at least 2 frames");
+  if (!(o.texture_footprint_m > 0.0 && o.texture_footprint_m <= 10.0)) fail("texture footprint must be in (0, 10] m");
   if (!(o.max_gain >= 1.0)) fail("maximum gain must be at least 1");
   if (o.capture_rule && (!(o.capture_rule->max_interval_s > 0.0) || !(o.capture_rule->max_distance_m > 0.0)))
     fail("capture rule interval and distance must be positive");
@@ -89,7 +93,7 @@ Simulator::Simulator(SimulatorOptions options)
       scene_(make_scene_ptr(options_)),
       camera_(make_sim_camera(options_)),
       trajectory_(sim::make_trajectory(options_.scene, options_.motion, options_.seed)),
-      renderer_(scene_, camera_, options_.supersampling) {
+      renderer_(scene_, camera_, options_.supersampling, shading_options(options_)) {
   vignette_map_ = options_.vignette.render(options_.width, options_.height);
   response_lut_.resize(kResponseLutSize + 1);
   for (int i = 0; i <= kResponseLutSize; ++i) {
@@ -97,6 +101,15 @@ Simulator::Simulator(SimulatorOptions options)
     response_lut_[static_cast<std::size_t>(i)] = static_cast<float>(options_.response(u * u));
   }
   rewind();
+}
+
+sim::ShadingOptions Simulator::shading_options(const SimulatorOptions& options) {
+  sim::ShadingOptions shading;
+  if (options.texture_filtering == TextureFiltering::DistanceIndependent) {
+    shading.texture_footprint_m = options.texture_footprint_m;
+    shading.glossy_floor = false;
+  }
+  return shading;
 }
 
 sim::Lighting Simulator::lighting(double power_w) const {
@@ -152,6 +165,33 @@ void Simulator::render_radiance(double t, double exposure_ms, double power_w, cv
   renderer_.render(poses, light, radiance, depth);
 }
 
+VignetteModel Simulator::halo_factor() const {
+  const sim::Illuminator light = lighting(0.0).illuminator;
+  const Eigen::Vector2d centre(0.5 * (options_.width - 1), 0.5 * (options_.height - 1));
+  constexpr int kRadii = 64;
+  Eigen::Matrix<double, kRadii, 3> A;
+  Eigen::Matrix<double, kRadii, 1> b;
+  for (int i = 0; i < kRadii; ++i) {
+    const double r = (i + 0.5) / kRadii;  // along the diagonal: radius 1 at the corner
+    const Eigen::Vector2d pixel = centre + r * centre;
+    const auto ray = camera_->unproject(pixel);
+    const double alpha = ray ? std::acos(std::clamp(ray->normalized().z(), -1.0, 1.0)) : 0.5 * std::numbers::pi;
+    const double r2 = r * r;
+    A.row(i) << r2, r2 * r2, r2 * r2 * r2;
+    b[i] = options_.vignette(r) * light.beam(alpha) - 1.0;
+  }
+  return VignetteModel{A.colPivHouseholderQr().solve(b)};
+}
+
+std::optional<double> Simulator::light_distance(const cv::Mat& depth, const Eigen::Vector2d& pixel) const {
+  const int x = static_cast<int>(std::lround(pixel.x())), y = static_cast<int>(std::lround(pixel.y()));
+  if (depth.type() != CV_32FC1 || x < 0 || y < 0 || x >= depth.cols || y >= depth.rows) return std::nullopt;
+  const double z = depth.at<float>(y, x);
+  const auto ray = camera_->unproject(pixel);
+  if (!(z > 0.0) || !ray || !(ray->z() > 0.0)) return std::nullopt;
+  return ((z / ray->z()) * *ray - options_.light_offset_cam).norm();
+}
+
 Frame Simulator::expose(const cv::Mat& radiance, double exposure_ms, double gain, std::uint64_t noise_key,
                         double* mean_grey) const {
   CV_Assert(radiance.type() == CV_32FC1 && radiance.size() == vignette_map_.size());
@@ -203,10 +243,14 @@ Frame Simulator::expose(const cv::Mat& radiance, double exposure_ms, double gain
   return frame;
 }
 
-std::pair<double, double> Simulator::auto_exposure_step(double exposure_ms, double gain, double mean_grey) const {
+std::pair<double, double> Simulator::auto_exposure_step(double exposure_ms, double gain, double mean_grey,
+                                                        std::int64_t frame) const {
   const ResponseModel& f = options_.response;
   const double measured = f.inverse(std::max(mean_grey, 0.5 / 255.0));
-  const double wanted = f.inverse(options_.target_grey);
+  double wanted = f.inverse(options_.target_grey);
+  if (options_.ae_target_swing > 0.0)
+    wanted *= std::exp(options_.ae_target_swing *
+                       std::sin(2.0 * std::numbers::pi * static_cast<double>(frame) / options_.ae_target_period_frames));
   double ratio = std::clamp(wanted / std::max(measured, 1e-9), 0.5, 2.0);
   if (std::fabs(std::log(ratio)) < 0.02) return {exposure_ms, gain};
   double step = std::pow(ratio, options_.ae_damping);
@@ -240,7 +284,7 @@ std::optional<SimulatedFrame> Simulator::next(bool with_depth) {
   out.frame.name = name;
   out.T_world_cam = trajectory_.pose(t);
   if (options_.exposure_mode == ExposureMode::Auto)
-    std::tie(exposure_ms_, gain_) = auto_exposure_step(exposure_ms_, gain_, out.mean_grey);
+    std::tie(exposure_ms_, gain_) = auto_exposure_step(exposure_ms_, gain_, out.mean_grey, i);
   ++index_;
   return out;
 }

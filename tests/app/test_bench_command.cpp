@@ -18,16 +18,21 @@ TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
   const CommandResult r =
       run_command(nirslam("bench --scenes room --powers 50 --frames 40 --size 320x240 --out '" + out.string() + "'"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("[1/2] Room_50"), std::string::npos) << "progress per run\n" << r.output;
+  EXPECT_NE(r.output.find("[1/3] Room_50"), std::string::npos) << "progress per run\n" << r.output;
   const auto md = lines_of(out / "bench.md");
   ASSERT_GE(md.size(), 3u);
-  EXPECT_EQ(md[0].rfind("| Sequence | ATE odometry [m] | ATE calibrated [m] | Improvement calibrated vs odometry [%]", 0), 0u)
+  // The paper's Table 2 columns: plain, + calibration, + the lamp's correction.
+  EXPECT_EQ(md[0].rfind("| Sequence | ATE odometry [m] | ATE calibrated [m] | ATE illuminated [m] | "
+                        "Improvement illuminated vs calibrated [%]",
+                        0),
+            0u)
       << md[0];
   EXPECT_EQ(md[2].rfind("| Room_50 | 0.", 0), 0u) << "an ATE in metres for the first mode\n" << md[2];
   const auto csv = lines_of(out / "bench.csv");
   ASSERT_EQ(csv.size(), 2u);
   EXPECT_EQ(csv[1].rfind("Room_50,0.", 0), 0u) << csv[1];
   EXPECT_TRUE(fs::exists(out / "runs/Room_50/calibrated/trajectory.txt"));
+  EXPECT_TRUE(fs::exists(out / "runs/Room_50/illuminated/trajectory.txt"));
 
   // A second bench reuses the rendered sequence.
   const CommandResult again = run_command(nirslam("bench --scenes room --powers 50 --frames 40 --size 320x240 --modes odometry --out '" +

@@ -1,6 +1,10 @@
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -63,6 +67,47 @@ TEST(CalibrateSweepCommand, BlackImagesFailWithReasonAndMissingTimeNamesFile) {
   EXPECT_EQ(missing.exit_code, 1) << missing.output;
   EXPECT_NE(missing.output.find("short.txt"), std::string::npos) << missing.output;
   EXPECT_NE(missing.output.find("no exposure time for image 'c.png'"), std::string::npos) << missing.output;
+}
+
+// Issue 6: the response from an illuminator power sweep. The simulator renders one viewpoint of
+// the room at 12 lamp powers, fixed exposure, no ambient light; calibrate-sweep --power-sweep
+// takes power x exposure as the known exposures, and its pcalib.txt is compared with the true
+// (log) inverse response over the grey levels the sweep covers.
+TEST(CalibrateSweepCommand, PowerSweepRecoversTheSimulatedResponse) {
+  const auto dir = fresh_dir("calibrate_power_sweep");
+  const CommandResult sim = run_command(nirslam(
+      "simulate --out '" + (dir / "sweep").string() +
+      "' --scene room --width 160 --height 120 --response log --exposure 4 --ambient 0 "
+      "--texture distance-independent --sweep 5,10,15,20,30,40,50,65,80,100,125,150"));
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  const CommandResult r = run_command(nirslam("calibrate-sweep '" + (dir / "sweep").string() + "' --power-sweep --out '" +
+                                              (dir / "out").string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("illuminator power sweep"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("monotonic yes"), std::string::npos) << r.output;
+  const std::vector<double> G = read_pcalib(dir / "out" / "pcalib.txt");
+  const std::vector<double> truth = ResponseModel::from_preset(ResponsePreset::Log).inverse_table(256);
+  ASSERT_EQ(G.size(), 256u);
+  double mean = 0.0, worst = 0.0;
+  for (std::size_t i = 0; i < 256; ++i) {
+    const double d = std::abs(G[i] - truth[i]);
+    mean += d / 256.0;
+    worst = std::max(worst, d);
+  }
+  std::printf("power sweep response error: mean %.2f, max %.2f grey levels\n", mean, worst);
+  EXPECT_LT(mean, 2.0);
+  EXPECT_LT(worst, 10.0);
+  std::ifstream in(dir / "out" / "sweep_calibration.json");
+  const nlohmann::json summary = nlohmann::json::parse(in);
+  EXPECT_TRUE(summary.at("power_sweep").get<bool>());
+  EXPECT_EQ(summary.at("images").size(), 12u);
+}
+
+TEST(CalibrateSweepCommand, PowerSweepWithoutSweepCsvNamesTheFile) {
+  const auto dir = fresh_dir("calibrate_power_sweep_missing");
+  const CommandResult r = run_command(nirslam("calibrate-sweep '" + dir.string() + "' --power-sweep"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("sweep.csv"), std::string::npos) << r.output;
 }
 
 }  // namespace

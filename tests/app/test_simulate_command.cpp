@@ -86,6 +86,12 @@ TEST(SimulateCommand, BadArgumentsAreNamed) {
   r = run_command(nirslam("simulate --scene room --supersampling 9 --out '" + out.string() + "'"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("supersampling"), std::string::npos) << r.output;
+  r = run_command(nirslam("simulate --scene room --texture blurry --out '" + out.string() + "'"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("--texture: expected pixel or distance-independent, got 'blurry'"), std::string::npos) << r.output;
+  r = run_command(nirslam("simulate --scene room --ae-swing 9 --out '" + out.string() + "'"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("auto-exposure target swing"), std::string::npos) << r.output;
 }
 
 TEST(SimulateCommand, FullDiskNamesTheFile) {

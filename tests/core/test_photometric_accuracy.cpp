@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "nirslam/photometric/calibration_output.hpp"
+#include "nirslam/photometric/illumination_factor.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/sim/simulator.hpp"
 
@@ -24,41 +25,89 @@ struct AccuracyRun {
   double mean_front_end_ms = 0.0;
   double in_range_mean_grey = 0.0;  // response error over the grey levels the fit observed
   double in_range_max_grey = 0.0;
+  double gamma_free_mean_grey = 0.0;  // response error after bringing the truth to the estimate's gamma gauge
+  double gamma_free_max_grey = 0.0;
   std::shared_ptr<const PhotometricEstimate> estimate;
 };
 
-SimulatorOptions constant_radiance(sim::SceneKind scene, ResponsePreset response, int frames) {
+// The calibration's test sequences: texture filtered independently of the viewing distance (a
+// surface point's radiance does not change as the camera moves, see simulator.hpp); auto exposure
+// from 2 ms, so the exposure ramps about 4x over the first ten frames and then settles.
+// A wandering auto-exposure target (ae_target_swing, NIRSLAM_PHOTOMETRIC_SWING=0.3 or 0.7) keeps
+// the exposure swinging 5-8x, but the response then comes out WORSE (room/log with known
+// exposures: 19-24 grey levels off in the observed range, against 0.8 without the swing), and
+// even a direct Debevec-Malik fit of the same keyframes lands there, so the observations
+// themselves are biased when the exposure changes between most frames: not understood yet (the
+// tracker's grey samples near clipped pixels, or tracking drift under brightness change, are
+// candidates; PhotometricAccuracy.DiagnoseObservations separates those). Hence no swing here.
+SimulatorOptions calibration_sequence(sim::SceneKind scene, ResponsePreset response, int frames) {
   SimulatorOptions o;
   o.scene = scene;
   o.width = 320;
   o.height = 240;
   o.supersampling = 1;
   o.frames = frames;
+  o.texture_filtering = TextureFiltering::DistanceIndependent;
   o.exposure_mode = ExposureMode::Auto;
-  o.exposure_ms = 2.0;  // far from the auto-exposure target, so the exposure moves
+  o.exposure_ms = 2.0;
+  o.ae_target_swing = 0.0;
+  o.ae_target_period_frames = 50.0;
+  o.response = ResponseModel::from_preset(response);
+  // Variants for diagnosis (the README table uses the defaults above).
+  if (const char* swing = std::getenv("NIRSLAM_PHOTOMETRIC_SWING")) o.ae_target_swing = std::atof(swing);
+  if (const char* texture = std::getenv("NIRSLAM_PHOTOMETRIC_TEXTURE"); texture && std::string(texture) == "pixel")
+    o.texture_filtering = TextureFiltering::PixelFootprint;
+  if (const char* footprint = std::getenv("NIRSLAM_PHOTOMETRIC_FOOTPRINT")) o.texture_footprint_m = std::atof(footprint);
+  return o;
+}
+
+SimulatorOptions constant_radiance(sim::SceneKind scene, ResponsePreset response, int frames) {
+  SimulatorOptions o = calibration_sequence(scene, response, frames);
   o.powers_w = {0.0};   // illuminator off ...
   o.ambient_irradiance = 0.4;  // ... and an ambient light: radiance independent of the camera position
-  o.response = ResponseModel::from_preset(response);
   return o;
+}
+
+// The co-located 50 W lamp as the light (with the scene's faint ambient light).
+SimulatorOptions co_lit(sim::SceneKind scene, ResponsePreset response, int frames) {
+  SimulatorOptions o = calibration_sequence(scene, response, frames);
+  o.powers_w = {50.0};
+  return o;
+}
+
+// Ground-truth light distances of the frame last rendered with depth (the simulator knows them;
+// the pipeline hands the odometry's depths the same way).
+FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& f) {
+  FrameIllumination illumination;
+  illumination.light_distance_m = [&sim, &f](const Eigen::Vector2d& pixel) { return sim.light_distance(f.depth, pixel); };
+  return illumination;
 }
 
 // Calibrates online over the sequence, finish(), then estimates every frame's exposure again with
 // the final model (front end only), as `nirslam calibrate` does.
-AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures) {
+AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures, bool light_factor = false) {
   OnlineCalibrationOptions options;
   options.background_thread = false;  // deterministic
   options.use_reported_exposures = use_reported_exposures;
   options.correct_images = false;
+  if (const char* probe = std::getenv("NIRSLAM_PHOTOMETRIC_PROBE")) options.backend.multi_start_probe_iterations = std::atoi(probe);
+  if (const char* gauge = std::getenv("NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT")) options.backend.gamma_gauge_weight = std::atof(gauge);
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_FREE_VIGNETTE") != nullptr) options.backend.vignette_monotonic = false;
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
+    options.backend.initial_response = sim_options.response;
+    options.backend.initial_vignette = sim_options.vignette;
+  }
   AccuracyRun out;
   PhotometricGroundTruth truth;
   truth.response = sim_options.response;
-  truth.vignette = sim_options.vignette;
+  // Under the lamp the back end estimates the halo factor V B (lens vignetting times beam).
+  truth.vignette = sim_options.powers_w.front() > 0.0 ? Simulator(sim_options).halo_factor() : sim_options.vignette;
   double e_min = 1e30, e_max = 0.0, front_end = 0.0;
   int frames = 0;
   {
     OnlinePhotometricCalibration calibration(options);
     Simulator sim(sim_options);
-    while (auto f = sim.next()) {
+    while (auto f = sim.next(light_factor)) {
       Frame frame = f->frame;
       const double e = *frame.exposure_ms * frame.gain.value_or(1.0);
       truth.exposures.emplace_back(frame.index, e);
@@ -66,7 +115,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
       e_max = std::max(e_max, e);
       out.mean_grey += f->mean_grey;
       if (!use_reported_exposures) frame.exposure_ms.reset();
-      front_end += calibration.process(frame).front_end_ms;
+      front_end += (light_factor ? calibration.process(frame, true_illumination(sim, *f)) : calibration.process(frame)).front_end_ms;
       ++frames;
     }
     calibration.finish();
@@ -81,10 +130,13 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   second.backend.initial_vignette = out.estimate->vignette;
   OnlinePhotometricCalibration exposures(second);
   Simulator sim(sim_options);
-  while (auto f = sim.next()) {
+  while (auto f = sim.next(light_factor)) {
     Frame frame = f->frame;
     if (!use_reported_exposures) frame.exposure_ms.reset();
-    exposures.process(frame);
+    if (light_factor)
+      exposures.process(frame, true_illumination(sim, *f));
+    else
+      exposures.process(frame);
   }
   out.errors = compare_with_ground_truth(out.estimate->response, out.estimate->vignette, exposures.exposure_history(),
                                          truth, sim_options.width, sim_options.height);
@@ -98,6 +150,15 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
       out.in_range_max_grey = std::max(out.in_range_max_grey, d);
     }
     if (n > 0) out.in_range_mean_grey /= n;
+    // Without known exposures the gamma is a normalisation (photometric_backend.hpp): the truth's
+    // G^g with g matching the two curves at the gauge grey level is what the data determine.
+    const double y = 128.0 / 255.0;
+    const double g = std::log(out.estimate->response.inverse(y)) / std::log(truth.response.inverse(y));
+    for (std::size_t i = 0; i < 256; ++i) {
+      const double d = std::abs(estimated[i] - 255.0 * std::pow(expected[i] / 255.0, g));
+      out.gamma_free_mean_grey += d / 256.0;
+      out.gamma_free_max_grey = std::max(out.gamma_free_max_grey, d);
+    }
   }
   return out;
 }
@@ -109,6 +170,9 @@ void print(const char* label, const AccuracyRun& r) {
               r.estimate->grey_high, r.in_range_mean_grey, r.in_range_max_grey, r.errors.vignette_mean,
               r.errors.vignette_max, r.errors.exposure_mean_ms, r.errors.exposure_max_ms,
               100.0 * r.errors.exposure_median_relative, r.estimate->status.c_str());
+  if (r.estimate->ambiguity == AmbiguityResolution::Normalisation)
+    std::printf("%-16s response modulo gamma %5.2f / %6.2f gl (%s)\n", label, r.gamma_free_mean_grey,
+                r.gamma_free_max_grey, r.estimate->ambiguity_detail.c_str());
 }
 
 TEST(PhotometricAccuracy, RoomConstantRadianceKnownExposures) {
@@ -118,17 +182,19 @@ TEST(PhotometricAccuracy, RoomConstantRadianceKnownExposures) {
   EXPECT_LT(r.mean_grey, 0.5);
   EXPECT_GT(r.exposure_span, 1.5);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::KnownExposures);
-  // Pinned at what the back end achieves now (measured: response 2.96 / 15.3 grey levels over all
-  // 256 levels, 1.69 / 2.41 over the observed 19..145; vignette 0.0215 / 0.10; exposure median
-  // 3.0 %). The response above the brightest observed grey value is extrapolation. The exposure
-  // median (second pass with the final model) is WORSE than the 0.89 % of c05b864, whose response
-  // was 20.8 grey levels off: not understood yet (see the commit message), so not the issue's
-  // target (< 2 %).
-  EXPECT_LT(r.errors.response_mean_grey, 4.0);
+  // Measured (distance-independent texture; before it, with the pixel-footprint texture: 2.96 /
+  // 15.3 over all levels, 1.69 / 2.41 observed, vignette 0.0215, exposure median 3.0 %): response
+  // 2.71 / 15.45 grey levels over all 256 levels, 0.84 / 1.24 over the observed 18..144 (above 144
+  // it is extrapolation: auto exposure keeps the frames mid-grey), vignette 0.0187 / 0.076,
+  // exposure median 0.98 %. The exposure median meets the issue's target (< 2 %) and is asserted
+  // as such; the response over all levels and the vignette do not (< 2 and < 0.005) and are pinned
+  // with modest slack.
+  EXPECT_LT(r.errors.response_mean_grey, 3.5);
   EXPECT_LT(r.errors.response_max_grey, 20.0);
-  EXPECT_LT(r.in_range_mean_grey, 2.5);
-  EXPECT_LT(r.errors.vignette_mean, 0.03);
-  EXPECT_LT(r.errors.exposure_median_relative, 0.04);
+  EXPECT_LT(r.in_range_mean_grey, 1.5);
+  EXPECT_LT(r.in_range_max_grey, 3.0);
+  EXPECT_LT(r.errors.vignette_mean, 0.025);
+  EXPECT_LT(r.errors.exposure_median_relative, 0.02);
 }
 
 TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
@@ -136,12 +202,50 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
   print("room log normalised", r);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::Normalisation);
   EXPECT_TRUE(std::isfinite(r.errors.response_mean_grey));
+  // The result says how (un)determined the gamma is. Measured: response 13.5-14.5 / 35-36 grey
+  // levels, 14.6-14.9 after bringing the truth to the estimate's gamma, exposure median 136-164 %
+  // (the exposures inherit the gamma error as e^g): far from the issue's targets, which need
+  // reported exposures or a power-sweep response here. With the gauge penalty of
+  // photometric_backend.hpp (NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT=1e3) it is worse: 45 grey levels.
+  EXPECT_NE(r.estimate->ambiguity_detail.find("gamma NOT determined"), std::string::npos) << r.estimate->ambiguity_detail;
+  EXPECT_TRUE(std::isfinite(r.gamma_free_mean_grey));
+  EXPECT_TRUE(r.estimate->response.is_monotonic());
+}
+
+// Issue 8, calibration side: under the co-located lamp the (d_ref/d)^2 (P/P_ref) factor from the
+// true distances. Measured on room/log (known exposures): exposure median 67.7 % -> 13.1 %,
+// residual 4.5 -> 2.6 grey levels; the response (18-24 grey levels) and the halo factor (0.13
+// against V B) stay far from the issue's targets: see the co-lit table in the report.
+TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
+  const AccuracyRun plain = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, false);
+  const AccuracyRun lit = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, true);
+  print("room co-lit", plain);
+  print("room co-lit+d^2", lit);
+  EXPECT_LT(lit.errors.exposure_median_relative, 0.2);
+  EXPECT_LT(lit.errors.exposure_median_relative, 0.3 * plain.errors.exposure_median_relative);
+  EXPECT_LT(lit.errors.vignette_mean, 0.6 * plain.errors.vignette_mean);
+  EXPECT_LT(lit.estimate->residual_rms, 0.75 * plain.estimate->residual_rms);
+}
+
+// The co-lit table: 4 scenes, the log response, without and with the light's distance factor
+// (true distances from the simulator). NIRSLAM_PHOTOMETRIC_TABLE=colit to run it.
+TEST(PhotometricAccuracy, CoLitTable) {
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_TABLE") == nullptr || std::string(std::getenv("NIRSLAM_PHOTOMETRIC_TABLE")) != "colit")
+    GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_TABLE=colit";
+  for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
+    for (const bool factor : {false, true}) {
+      const AccuracyRun r = run(co_lit(scene, ResponsePreset::Log, 150), true, factor);
+      const std::string label = std::string(sim::to_string(scene)) + (factor ? " +d^2" : " plain");
+      print(label.c_str(), r);
+    }
 }
 
 // The full table: 4 scenes x 4 response presets (NIRSLAM_PHOTOMETRIC_TABLE=1 to run it).
 TEST(PhotometricAccuracy, Table) {
   if (std::getenv("NIRSLAM_PHOTOMETRIC_TABLE") == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_TABLE=1";
-  const bool known = std::string(std::getenv("NIRSLAM_PHOTOMETRIC_TABLE")) != "normalised";
+  const std::string which = std::getenv("NIRSLAM_PHOTOMETRIC_TABLE");
+  if (which == "colit") GTEST_SKIP() << "the co-lit table is CoLitTable";
+  const bool known = which != "normalised";
   for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
     for (const ResponsePreset preset : {ResponsePreset::Linear, ResponsePreset::Gamma, ResponsePreset::Log, ResponsePreset::Filmic}) {
       const AccuracyRun r = run(constant_radiance(scene, preset, 150), known);

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "nirslam/photometric/illumination_factor.hpp"
 #include "nirslam/photometric/photometric_backend.hpp"
 
 namespace nirslam {
@@ -47,6 +48,48 @@ TEST(PhotometricBackend, JacobianMatchesNumericDifferentiation) {
       const double numeric = (residual(plus) - residual(minus)) / (2.0 * h);
       EXPECT_NEAR(J[k], numeric, 1e-5 * std::max(1.0, std::abs(numeric)))
           << "parameter " << k << " grey " << grey << " radius " << radius << " exposure " << exposure;
+    }
+  }
+}
+
+// The residual under the co-located light, r = G / (e V a) - L with a = (d_ref/d)^2 (P/P_ref):
+// its Jacobian in (c, v, e, L) and its derivative in the distance d and power P (through
+// log a = log_illumination(P, d) - log_illumination(P_ref, d_ref)) against central differences.
+TEST(PhotometricBackend, LitResidualJacobianMatchesNumericDifferentiation) {
+  const Eigen::Vector4d c = ResponseModel::from_preset(ResponsePreset::Gamma).coefficients();
+  const Eigen::Vector3d v(-0.3, 0.08, -0.04);
+  const InverseResponse inverse(c);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> grey_of(8.0, 245.0), radius_of(0.0, 1.0), exposure_of(0.5, 20.0),
+      distance_of(0.3, 8.0), power_of(5.0, 150.0);
+  const double d_ref = 2.0, p_ref = 50.0;
+  for (int trial = 0; trial < 50; ++trial) {
+    const double grey = grey_of(rng), radius = radius_of(rng), exposure = exposure_of(rng);
+    const double distance = distance_of(rng), power = power_of(rng), radiance = 2.0;
+    const auto factor = [&](double d, double p) {
+      return std::exp(log_illumination(p, d) - log_illumination(p_ref, d_ref));
+    };
+    EXPECT_NEAR(factor(distance, power), (d_ref / distance) * (d_ref / distance) * (power / p_ref), 1e-12);
+    PhotometricJacobian J;
+    double dr_dlog_a = 0.0, dlog_a_dd = 0.0;
+    log_illumination(power, distance, &dlog_a_dd);
+    lit_photometric_residual(inverse, v, exposure, radiance, grey, radius, factor(distance, power), &J, &dr_dlog_a);
+    Eigen::Matrix<double, 11, 1> p;
+    p << c, v, exposure, radiance, distance, power;
+    const auto residual = [&](const Eigen::Matrix<double, 11, 1>& q) {
+      return lit_photometric_residual(InverseResponse(q.head<4>()), q.segment<3>(4), q[7], q[8], grey, radius,
+                                      factor(q[9], q[10]));
+    };
+    Eigen::Matrix<double, 11, 1> analytic;
+    analytic << J, dr_dlog_a * dlog_a_dd, dr_dlog_a / power;
+    for (int k = 0; k < 11; ++k) {
+      const double h = 1e-6 * std::max(1.0, std::abs(p[k]));
+      Eigen::Matrix<double, 11, 1> plus = p, minus = p;
+      plus[k] += h;
+      minus[k] -= h;
+      const double numeric = (residual(plus) - residual(minus)) / (2.0 * h);
+      EXPECT_NEAR(analytic[k], numeric, 1e-5 * std::max(1.0, std::abs(numeric)))
+          << "parameter " << k << " grey " << grey << " distance " << distance << " power " << power;
     }
   }
 }
@@ -122,6 +165,34 @@ TEST(PhotometricBackend, RecoversResponseAndVignetteWithKnownExposures) {
   EXPECT_TRUE(backend.response().is_monotonic());
 }
 
+// Data whose best-fitting V rises again towards the rim (as a co-located lamp's halo can make it
+// look): with vignette_monotonic every accepted step keeps V falling; without it, the fit follows
+// the data's rise (which shows the constraint is what keeps it plausible).
+TEST(PhotometricBackend, VignetteStaysPlausibleWhenDataRiseAtTheRim) {
+  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
+  const VignetteModel rising{Eigen::Vector3d(-0.6, 0.6, 0.0)};  // 1 at the centre and at the rim, 0.85 between
+  ASSERT_FALSE(rising.is_plausible());
+  for (const bool monotonic : {true, false}) {
+    PhotometricBackendOptions options;
+    options.initial_response = truth;
+    options.estimate_response = false;
+    options.vignette_monotonic = monotonic;
+    PhotometricBackend backend(options);
+    for (auto& kf : synthetic(truth, rising, 20, 60, true, true, 0.5, 4).keyframes) backend.add_keyframe(std::move(kf));
+    const BackendStep step = backend.optimise(60, true);
+    ASSERT_TRUE(step.ok) << step.status;
+    ASSERT_TRUE(step.vignette_estimated) << step.status;
+    const VignetteModel& V = backend.vignette();
+    std::printf("monotonic %d: V(0.7) %.4f V(1) %.4f, %s\n", monotonic, V(0.7), V(1.0), step.status.c_str());
+    if (monotonic) {
+      EXPECT_TRUE(V.is_plausible());
+    } else {
+      EXPECT_FALSE(V.is_plausible());
+      EXPECT_GT(V(1.0), V(0.7) + 0.05);
+    }
+  }
+}
+
 TEST(PhotometricBackend, EstimatesExposuresUnderNormalisation) {
   const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
   const VignetteModel vignette{Eigen::Vector3d(-0.35, 0.10, -0.05)};
@@ -140,6 +211,71 @@ TEST(PhotometricBackend, EstimatesExposuresUnderNormalisation) {
     worst = std::max(worst, std::abs(exposures[k].second / problem.exposures[k] - 1.0));
   std::printf("%s; worst exposure error %.5f\n", step.status.c_str(), worst);
   EXPECT_LT(worst, 5e-3);
+}
+
+// Keyframes of a rig approaching surfaces under its own lamp: every point brightens as
+// (d_0/d_k)^2, by a different amount per point. Unknown exposures: without the factor the back end
+// takes the common brightening for exposure; with it, the exposures come out right.
+TEST(PhotometricBackend, CoLitKeyframesNeedTheDistanceFactor) {
+  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
+  const int width = 320, height = 240, tracks = 60, keyframes = 20;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<double> radiance(static_cast<std::size_t>(tracks)), d0(static_cast<std::size_t>(tracks));
+  std::vector<Eigen::Vector2d> start(static_cast<std::size_t>(tracks));
+  for (int t = 0; t < tracks; ++t) {
+    radiance[static_cast<std::size_t>(t)] = 0.01 + 0.03 * uniform(rng);
+    d0[static_cast<std::size_t>(t)] = 2.0 + 3.0 * uniform(rng);
+    start[static_cast<std::size_t>(t)] = Eigen::Vector2d(30 + 260 * uniform(rng), 30 + 180 * uniform(rng));
+  }
+  std::vector<double> exposures;
+  std::vector<PhotometricKeyframe> with_factor, without_factor;
+  for (int k = 0; k < keyframes; ++k) {
+    const double e = 5.0 * std::exp(0.4 * std::sin(0.9 * k));
+    exposures.push_back(e);
+    PhotometricKeyframe kf;
+    kf.frame_index = k;
+    kf.width = width;
+    kf.height = height;
+    kf.exposure = k == 0 ? e : 5.0;  // the gauge holds the first; the others start off
+    kf.illumination_modelled = true;
+    for (int t = 0; t < tracks; ++t) {
+      const double d = d0[static_cast<std::size_t>(t)] - 0.06 * k;  // the rig moves 6 cm per keyframe
+      KeyframeObservation o;
+      o.track_id = t;
+      o.position = start[static_cast<std::size_t>(t)] + Eigen::Vector2d(2.0 * k, 1.0 * k);
+      o.log_illumination = static_cast<float>(log_illumination(50.0, d));
+      const double a = (d0[static_cast<std::size_t>(t)] / d) * (d0[static_cast<std::size_t>(t)] / d);
+      for (int p = 0; p < kBackendPixels; ++p) {
+        const double grey = 255.0 * truth(e * a * radiance[static_cast<std::size_t>(t)] * (1.0 + 0.05 * p));
+        o.grey[static_cast<std::size_t>(p)] = grey > 3.0 && grey < 250.0 ? static_cast<float>(grey) : -1.0f;
+      }
+      kf.observations.push_back(o);
+    }
+    with_factor.push_back(kf);
+    kf.illumination_modelled = false;
+    for (KeyframeObservation& o : kf.observations) o.log_illumination = 0.0f;
+    without_factor.push_back(kf);
+  }
+  const auto worst_exposure_error = [&](std::vector<PhotometricKeyframe> input) {
+    PhotometricBackendOptions options;
+    options.initial_response = truth;
+    options.estimate_response = false;
+    options.estimate_vignette = false;
+    PhotometricBackend backend(options);
+    for (auto& kf : input) backend.add_keyframe(std::move(kf));
+    const BackendStep step = backend.optimise(60, true);
+    EXPECT_TRUE(step.ok) << step.status;
+    double worst = 0.0;
+    const auto estimated = backend.keyframe_exposures();
+    for (std::size_t k = 0; k < estimated.size(); ++k)
+      worst = std::max(worst, std::abs(estimated[k].second / exposures[k] - 1.0));
+    return worst;
+  };
+  const double with = worst_exposure_error(with_factor), without = worst_exposure_error(without_factor);
+  std::printf("worst exposure error: with the factor %.5f, without %.3f\n", with, without);
+  EXPECT_LT(with, 2e-3);
+  EXPECT_GT(without, 0.1);
 }
 
 TEST(PhotometricBackend, DegenerateInputKeepsTheModelAndSaysWhy) {

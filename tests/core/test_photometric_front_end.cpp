@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/photometric/exposure_estimator.hpp"
+#include "nirslam/photometric/illumination_factor.hpp"
 #include "nirslam/photometric/photometric_tracker.hpp"
 #include "nirslam/sim/simulator.hpp"
 
@@ -102,18 +103,24 @@ struct ExposureErrors {
 
 // Runs tracker + estimator on a simulated sequence; relative error of the estimated exposure x gain
 // against the simulator's, with the first frame normalised to the reported value.
-ExposureErrors run_sequence(const SimulatorOptions& options) {
+// With `light_factor`, each track's log(P / d^2) from the simulator's true depths goes to the
+// estimator (illumination_factor.hpp), which then also divides by the halo factor V B.
+ExposureErrors run_sequence(const SimulatorOptions& options, bool light_factor = false) {
   Simulator sim(options);
   PhotometricTracker tracker;
-  ExposureEstimator estimator(options.response, options.vignette);
-  std::vector<double> errors;
+  ExposureEstimator estimator(options.response, light_factor ? sim.halo_factor() : options.vignette);
+  std::vector<double> errors, log_light;
   ExposureErrors out;
   out.exposure_min = 1e9;
-  while (auto frame = sim.next()) {
+  while (auto frame = sim.next(light_factor)) {
     const double truth = *frame->frame.exposure_ms * frame->frame.gain.value_or(1.0);
     out.exposure_min = std::min(out.exposure_min, truth);
     out.exposure_max = std::max(out.exposure_max, truth);
-    const ExposureEstimate& e = estimator.update(tracker.process(frame->frame));
+    const TrackedFrame& tracked = tracker.process(frame->frame);
+    log_light.clear();
+    for (const TrackObservation& t : tracked.tracks)
+      log_light.push_back(log_illumination(*frame->frame.illuminator_power_w, sim.light_distance(frame->depth, t.position)));
+    const ExposureEstimate& e = estimator.update(tracked, light_factor ? &log_light : nullptr);
     EXPECT_TRUE(e.exposure.has_value()) << e.reason;
     if (!e.exposure) continue;
     EXPECT_TRUE(std::isfinite(*e.exposure));
@@ -164,6 +171,27 @@ TEST(ExposureEstimator, CoLocatedIlluminatorIsWorseButFinite) {
   EXPECT_TRUE(std::isfinite(errors.median));
   EXPECT_TRUE(std::isfinite(errors.max));
   EXPECT_GT(errors.estimated, static_cast<int>(o.frames) * 3 / 4);
+}
+
+// Issue 8, calibration side: the same lamp-lit sequence (texture independent of distance, so the
+// lamp is the only reason radiance changes) without and with the (d_ref/d)^2 factor from the true
+// distances.
+TEST(ExposureEstimator, CoLocatedIlluminatorWithTrueDistances) {
+  SimulatorOptions o = small_sequence();
+  o.texture_filtering = TextureFiltering::DistanceIndependent;
+  o.powers_w = {50.0};
+  o.ambient_irradiance = 0.0;
+  const ExposureErrors plain = run_sequence(o, false);
+  const ExposureErrors lit = run_sequence(o, true);
+  std::printf("illuminator only: median error %.4f (max %.4f) without the distance factor, %.4f (max %.4f) with it\n",
+              plain.median, plain.max, lit.median, lit.max);
+  // Measured: 94 % median error without the factor, 2.15 % (max 3.5 %) with it. The rest is the
+  // cos(theta) term a distance alone does not give (illumination_factor.hpp) and the halo
+  // factor's polynomial fit; the issue's 2 % is not quite reached here.
+  EXPECT_GT(lit.estimated, static_cast<int>(o.frames) * 3 / 4);
+  EXPECT_LT(lit.median, 0.03);
+  EXPECT_LT(lit.max, 0.06);
+  EXPECT_LT(lit.median, 0.05 * plain.median);
 }
 
 class ExposureDegenerate : public ::testing::Test {

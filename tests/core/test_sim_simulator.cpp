@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
@@ -85,6 +87,71 @@ TEST(Simulator, DepthAndPosesLandOnTheSameSurfacePointInAnotherFrame) {
     EXPECT_GT(checked, 100) << to_string(scene);
     EXPECT_GT(agreed, 0.9 * checked) << to_string(scene);
   }
+}
+
+// Photometric calibration's ground truth (issue 6): with the texture filtered independently of
+// the viewing distance, a surface point seen from two poses at different distances has the same
+// radiance (lamp off, ambient light only); filtered to the pixel footprint it does not.
+TEST(Simulator, DistanceIndependentTextureKeepsASurfacePointsRadiance) {
+  const auto spread = [](TextureFiltering filtering) {
+    SimulatorOptions o = small(sim::SceneKind::Room);
+    o.width = 320;  // render_pixel only: the size sets the pixel footprint, not the cost
+    o.height = 240;
+    o.powers_w = {0.0};
+    o.ambient_irradiance = 0.4;
+    o.texture_filtering = filtering;
+    Simulator sim(o);
+    const sim::Lighting light = sim.lighting(0.0);
+    const SE3 a = sim.trajectory().pose(0.0), b = sim.trajectory().pose(1.5);
+    const CameraModel& cam = *sim.camera();
+    double sum = 0.0, ratio_sum = 0.0;
+    int n = 0;
+    for (int y = 10; y < o.height; y += 12)
+      for (int x = 10; x < o.width; x += 12) {
+        const auto pa = sim.renderer().render_pixel(a, light, Eigen::Vector2d(x, y));
+        if (!pa.hit || !(pa.radiance > 0.0)) continue;
+        const auto px = cam.project(b.inverse() * pa.hit->point);
+        if (!px || !cam.contains(*px, 2.0)) continue;
+        const auto pb = sim.renderer().render_pixel(b, light, *px);
+        if (!pb.hit || (pb.hit->point - pa.hit->point).norm() > 1e-3) continue;  // hidden from b
+        const double da = (pa.hit->point - a.translation()).norm(), db = (pb.hit->point - b.translation()).norm();
+        ratio_sum += std::abs(std::log(db / da));
+        sum += std::abs(pb.radiance / pa.radiance - 1.0);
+        ++n;
+      }
+    EXPECT_GT(n, 50);
+    EXPECT_GT(ratio_sum / std::max(n, 1), 0.05) << "the two poses must see the points from different distances";
+    return sum / std::max(n, 1);
+  };
+  const double independent = spread(TextureFiltering::DistanceIndependent);
+  const double footprint = spread(TextureFiltering::PixelFootprint);
+  std::printf("mean relative radiance change of a point between two poses: %.5f distance-independent, %.5f pixel footprint\n",
+              independent, footprint);
+  EXPECT_LT(independent, 2e-3);
+  EXPECT_GT(footprint, 5.0 * independent);
+}
+
+// The wandering auto-exposure target keeps the exposure swinging instead of settling.
+TEST(Simulator, WanderingAutoExposureTargetKeepsTheExposureSwinging) {
+  const auto span = [](double swing) {
+    SimulatorOptions o = small(sim::SceneKind::Room);
+    o.width = 64;
+    o.height = 48;
+    o.supersampling = 1;
+    o.frames = 60;
+    o.ae_target_swing = swing;
+    o.ae_target_period_frames = 30.0;
+    Simulator sim(o);
+    std::vector<double> late;  // after the first settling
+    while (const auto f = sim.next())
+      if (f->frame.index >= 20) late.push_back(*f->frame.exposure_ms);
+    const auto [lo, hi] = std::minmax_element(late.begin(), late.end());
+    return *hi / *lo;
+  };
+  const double fixed = span(0.0), wandering = span(0.7);
+  std::printf("exposure span after settling: %.2fx fixed target, %.2fx wandering\n", fixed, wandering);
+  EXPECT_GT(wandering, 2.0);
+  EXPECT_GT(wandering, 1.5 * fixed);
 }
 
 TEST(Simulator, InverseResponseRecoversExposureTimesVignetteTimesRadiance) {

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <memory>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -26,10 +27,40 @@ std::shared_ptr<const CameraModel> pinhole(int width, int height) {
 }
 
 TEST(SlamPipeline, ModeNamesRoundTrip) {
-  for (PipelineMode mode : {PipelineMode::Quality, PipelineMode::Odometry, PipelineMode::Calibrated})
-    EXPECT_EQ(parse_pipeline_mode(to_string(mode)), mode);
+  EXPECT_EQ(pipeline_modes().size(), 5u);
+  for (PipelineMode mode : pipeline_modes()) EXPECT_EQ(parse_pipeline_mode(to_string(mode)), mode);
   EXPECT_FALSE(parse_pipeline_mode("dso"));
-  EXPECT_EQ(odometry_modes().front(), PipelineMode::Odometry);
+  EXPECT_EQ(parse_pipeline_mode("odometry-illuminated"), PipelineMode::OdometryIlluminated);
+  // The bench order: the paper's Table 2 columns, each adding one stage.
+  EXPECT_EQ(odometry_modes(),
+            (std::vector<PipelineMode>{PipelineMode::Odometry, PipelineMode::Calibrated, PipelineMode::Illuminated}));
+}
+
+TEST(SlamPipeline, ModesChooseCalibrationAndTheLampFactor) {
+  EXPECT_FALSE(runs_calibration(PipelineMode::Odometry));
+  EXPECT_TRUE(runs_calibration(PipelineMode::Calibrated));
+  EXPECT_TRUE(runs_calibration(PipelineMode::Illuminated));
+  EXPECT_FALSE(runs_calibration(PipelineMode::OdometryIlluminated));
+  EXPECT_FALSE(corrects_illuminator(PipelineMode::Calibrated));
+  EXPECT_TRUE(corrects_illuminator(PipelineMode::Illuminated));
+  EXPECT_TRUE(corrects_illuminator(PipelineMode::OdometryIlluminated));
+  for (PipelineMode mode : {PipelineMode::Odometry, PipelineMode::Illuminated, PipelineMode::OdometryIlluminated}) {
+    PipelineOptions options;
+    options.mode = mode;
+    options.calibration.background_thread = false;
+    SlamPipeline pipeline(options, pinhole(64, 48));
+    ASSERT_NE(pipeline.odometry(), nullptr);
+    EXPECT_EQ(pipeline.odometry()->options().illuminator_correction, corrects_illuminator(mode)) << to_string(mode);
+    EXPECT_EQ(pipeline.calibration() != nullptr, runs_calibration(mode)) << to_string(mode);
+  }
+  // The beam term only on raw frames: the calibration's halo factor holds the beam.
+  PipelineOptions options;
+  options.odometry.beam_exponent = 4.8;
+  options.mode = PipelineMode::OdometryIlluminated;
+  EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().beam_exponent, 4.8);
+  options.mode = PipelineMode::Illuminated;
+  options.calibration.background_thread = false;
+  EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().beam_exponent, 0.0);
 }
 
 TEST(SlamPipeline, QualityModeRunsNoStage) {

@@ -23,11 +23,13 @@ struct CoarseTrackerOptions {
   int iterations_per_level = 8;
   double affine_a_prior = 1.0;      // energy weights pulling the frame's a, b to 0
   double affine_b_prior = 1e-2;
+  LampGeometry lamp;  // the co-located lamp's distance factor (photometric_residual.hpp), when enabled
 };
 
 struct ReferencePoint {
   Eigen::Vector2d pixel;  // in the keyframe, level 0
   double inverse_depth = 1.0;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // surface normal in the keyframe (lamp), zero: unknown
 };
 
 struct TrackingEstimate {
@@ -71,6 +73,7 @@ private:
     float u, v;  // level pixel
     float inverse_depth;
     float reference_intensity;
+    Eigen::Vector3f normal;  // zero: unknown
   };
   // Energy and normal equations of one level at (T, a, b); returns inlier count.
   int accumulate(int level, const ImagePyramid& frame, double exposure, const SE3& T, double a, double b,

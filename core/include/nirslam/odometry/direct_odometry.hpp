@@ -71,6 +71,23 @@ struct OdometryOptions {
   double affine_a_prior_free = 1e5;
   double affine_b_prior_free = 1e2;
 
+  // The co-located illuminator (DESIGN.md, "The illuminator model"): with the correction on, the
+  // residual between host h and target t carries g = (d_h / d_t)^2, d the distance from the lamp
+  // to the point from the current depth and pose estimates (in tracking and in the window, with
+  // its derivatives), and the frames' illuminator powers P multiply their exposures, so the
+  // brightness ratio carries P_t / P_h (P = 1 when a frame does not say). The light sits at
+  // `light_offset` in the camera frame, in the odometry's units (monocular: the initialiser
+  // sets the mean inverse depth of its points to 1, so this is a fraction of the first scene
+  // depth; 0 = at the camera centre).
+  // A beam B(alpha) = cos(alpha)^m around the optical axis adds B(alpha_t) / B(alpha_h) to g;
+  // m = 0 leaves the beam to the photometric calibration's halo factor (calibrated frames).
+  bool illuminator_correction = false;
+  Eigen::Vector3d light_offset = Eigen::Vector3d::Zero();
+  double beam_exponent = 0.0;
+  // cos(theta) of the lamp's light on the surface, from normals fitted to neighbouring points'
+  // depths (odometry/surface_normals.hpp), where a plane fits.
+  bool lamp_surface_normals = true;
+
   // Initialiser.
   double init_min_parallax_px = 6.0;    // rms translational flow at level 0 for a 640-wide image
   int init_static_frames = 30;          // initialise without parallax after this many frames
@@ -85,7 +102,7 @@ struct OdometryFrame {
   // between host h and target t then uses e_t / e_h, affine a, b kept near 0 by a strong prior.
   // When absent: plain DSO, affine brightness free (weak prior).
   std::optional<double> exposure;
-  std::optional<double> illuminator_power_w;  // unused for now (issue 8 adds the lamp's term)
+  std::optional<double> illuminator_power_w;  // with illuminator_correction: multiplies the exposure
 };
 
 enum class TrackingStatus { Initialising, Tracking, Lost, NewSegment };

@@ -5,7 +5,13 @@
 // moved by T_target_host = (R, t), lands at q / rho with q = R K^-1 x + rho t, so the warp needs
 // no division by rho and stays finite for points at infinity (rho = 0).
 //
-//   r = I_t(pi(q)) - s (I_h(x) - b_h) - b_t,     s = exp(a_t - a_h) e_t / e_h.
+//   r = I_t(pi(q)) - s g (I_h(x) - b_h) - b_t,     s = exp(a_t - a_h) e_t / e_h.
+//
+// g is the co-located illuminator's irradiance ratio (DESIGN.md, "The illuminator model"): the
+// lamp at offset o from the camera centre lights the point with 1 / d^2, so g = d_h^2 / d_t^2
+// with d = |X - o|, times the beam ratio when a beam is set (below); the power ratio P_t / P_h
+// is a per-frame brightness factor like the exposure ratio and travels with it in e. With the
+// correction off, g = 1.
 //
 // Poses are T_cam_world, perturbed on the left (T <- exp(xi) T, xi = (upsilon, omega)); the
 // derivative for the host pose follows from the one for T_target_host by the adjoint.
@@ -73,6 +79,86 @@ inline Matrix6d adjoint(const SE3& T) {
   return ad;
 }
 
+// The illuminator's factor g and its log-derivatives. The lamp at offset o in the camera frame
+// lights a surface point X with B(alpha) cos(theta) / d^2: d = |X - o|, B(alpha) = cos(alpha)^m
+// its beam (alpha off the optical axis; m = 0: no beam term, e.g. when the calibration's halo
+// factor already holds it), theta between the surface normal n and the direction to the light.
+//   g = (d_h / d_t)^2 * B(alpha_t) / B(alpha_h) * cos(theta_t) / cos(theta_h)
+// In terms of the ray m = K^-1 x and q = R m + rho t (see above), u_h = m - rho o and
+// u_t = q - rho o are the light-to-point vectors scaled by rho, so with n_h = |u_h|^2, n_t = |u_t|^2
+//   log g = (1 + m/2 + c/2) (log n_h - log n_t) + m (log u_t,z - log u_h,z)
+//           + c (log(-(R n) . u_t) - log(-n . u_h)),        c = 1 with a normal, else 0,
+// finite at rho = 0 (where g = 1 without beam and normal). Under the left perturbation of
+// T_target_host the target point moves by d_upsilon + d_omega x X_t, so
+// d u_t = rho d_upsilon - [q]x d_omega and d (R n) = d_omega x R n; d u_h / d rho = -o,
+// d u_t / d rho = t - o.
+struct LampGeometry {
+  bool enabled = false;
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // light position in the camera frame, odometry units
+  double beam_exponent = 0.0;                        // m of B(alpha) = cos(alpha)^m
+};
+struct LampFactor {
+  double g = 1.0;
+  Eigen::Matrix<double, 1, 6> d_log_g_d_pose = Eigen::Matrix<double, 1, 6>::Zero();  // of T_target_host
+  double d_log_g_d_rho = 0.0;
+};
+// Below this cos(theta) in either view, the normal is not trusted (grazing light, or a wrong
+// normal) and the cos term is left out.
+inline constexpr double kMinLampCosine = 0.2;
+// `normal_host`: the surface normal in the host camera frame (unit), or nullptr. False when the
+// point sits on the light or, with a beam, behind it.
+inline bool lamp_factor(const Eigen::Vector3d& ray, double rho, const Eigen::Matrix3d& R_target_host,
+                        const Eigen::Vector3d& t_target_host, const LampGeometry& lamp, LampFactor& out,
+                        const Eigen::Vector3d* normal_host = nullptr) {
+  const Eigen::Vector3d& o = lamp.offset;
+  const double m = lamp.beam_exponent;
+  const Eigen::Vector3d q = R_target_host * ray + rho * t_target_host;
+  const Eigen::Vector3d u_h = ray - rho * o;
+  const Eigen::Vector3d u_t = q - rho * o;
+  const double n_h = u_h.squaredNorm();
+  const double n_t = u_t.squaredNorm();
+  if (n_h < 1e-12 || n_t < 1e-12) return false;
+  const Eigen::Vector3d t_minus_o = t_target_host - o;
+  double norm_weight = 1.0;  // (1 + m/2 + c/2)
+  double log_g = 0.0;
+  Eigen::Vector3d w = Eigen::Vector3d::Zero();  // d log g / d u_t, but for the norm term
+  Eigen::Vector3d d_rot_extra = Eigen::Vector3d::Zero();
+  double d_rho_extra = 0.0;
+  if (m != 0.0) {
+    if (u_h.z() < 1e-9 || u_t.z() < 1e-9) return false;
+    norm_weight += 0.5 * m;
+    log_g += m * std::log(u_t.z() / u_h.z());
+    w.z() += m / u_t.z();
+    d_rho_extra += m * (t_minus_o.z() / u_t.z() + o.z() / u_h.z());
+  }
+  if (normal_host != nullptr) {
+    const Eigen::Vector3d Rn = R_target_host * *normal_host;
+    const double c_h = -normal_host->dot(u_h);  // |u_h| cos(theta_h)
+    const double c_t = -Rn.dot(u_t);
+    if (c_h > kMinLampCosine * std::sqrt(n_h) && c_t > kMinLampCosine * std::sqrt(n_t)) {
+      norm_weight += 0.5;
+      log_g += std::log(c_t / c_h);
+      w += Rn / Rn.dot(u_t);
+      d_rot_extra = Rn.cross(u_t) / Rn.dot(u_t);
+      d_rho_extra += Rn.dot(t_minus_o) / Rn.dot(u_t) + normal_host->dot(o) / normal_host->dot(u_h);
+    }
+  }
+  log_g += norm_weight * std::log(n_h / n_t);
+  w += (-2.0 * norm_weight / n_t) * u_t;
+  out.g = std::exp(log_g);
+  out.d_log_g_d_pose.head<3>() = rho * w.transpose();
+  out.d_log_g_d_pose.tail<3>() = (q.cross(w) + d_rot_extra).transpose();
+  out.d_log_g_d_rho = norm_weight * (-2.0 * u_h.dot(o) / n_h - 2.0 * u_t.dot(t_minus_o) / n_t) + d_rho_extra;
+  return true;
+}
+// Value only (the energy passes); 1 where lamp_factor fails.
+inline double lamp_factor_value(const Eigen::Vector3d& ray, double rho, const Eigen::Matrix3d& R_target_host,
+                                const Eigen::Vector3d& t_target_host, const LampGeometry& lamp,
+                                const Eigen::Vector3d* normal_host = nullptr) {
+  LampFactor f;
+  return lamp_factor(ray, rho, R_target_host, t_target_host, lamp, f, normal_host) ? f.g : 1.0;
+}
+
 // Brightness transfer host -> target.
 struct AffineTransfer {
   double scale = 1.0;  // exp(a_t - a_h) e_t / e_h
@@ -99,6 +185,7 @@ struct ResidualJacobian {
 };
 bool linearize_residual(const LevelCamera& camera, const PyramidLevel& target, const SE3& T_target_host,
                         const SE3& T_target_host_jacobian, const Eigen::Vector2d& host_pixel, double rho,
-                        double host_intensity, const AffineTransfer& affine, ResidualJacobian& out);
+                        double host_intensity, const AffineTransfer& affine, ResidualJacobian& out,
+                        const LampGeometry& lamp = {}, const Eigen::Vector3d* normal_host = nullptr);
 
 }  // namespace nirslam::odometry

@@ -12,6 +12,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -42,6 +43,9 @@ struct WindowPoint {
   double inverse_depth = 1.0;
   double inverse_depth_prior_weight = 0.0;  // the initialiser's points fix the scale, as in DSO
   double inverse_depth_prior_mean = 1.0;
+  // The surface normal in the host frame (unit) for the lamp's cos(theta), from neighbouring
+  // points' depths (DirectOdometry), when it could be estimated.
+  std::optional<Eigen::Vector3d> normal;
   std::vector<PointResidual> residuals;
   // Scratch of the current linearisation.
   double H_pp = 0.0;
@@ -71,6 +75,9 @@ struct WindowOptions {
   double gradient_weight_c = 50.0;
   double outlier_energy = 12.0 * 12.0;  // per pattern pixel
   double initial_lambda = 1e-4;
+  // The co-located lamp's distance factor g (photometric_residual.hpp), when enabled: one g per
+  // (point, target), from the centre pixel, serves the whole pattern.
+  LampGeometry lamp;
 };
 
 struct WindowStatistics {

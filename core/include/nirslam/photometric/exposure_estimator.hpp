@@ -21,6 +21,10 @@
 // source reports no exposure, the first good frame is 1 and the values are relative. When every
 // anchored track is lost (a black frame in between), the chain restarts at the frame's reported
 // exposure if there is one, else at the last estimate, and the status says so.
+//
+// Under a co-located light a track's radiance changes with its distance to the lamp and the
+// lamp's power: given per-track factors (illumination_factor.hpp), the estimator removes that
+// change before comparing with the anchor (see update()).
 
 #include <cstdint>
 #include <optional>
@@ -81,6 +85,13 @@ public:
   void set_model(const ResponseModel& response, const VignetteModel& vignette);
 
   const ExposureEstimate& update(const TrackedFrame& tracked);
+  // With a co-located light (illumination_factor.hpp): `log_illumination` holds each track's
+  // log(P / d^2) in this frame (aligned with tracked.tracks, NaN where unknown). A track's
+  // candidate is then log e_anchor + log ratio - (log a_t - log a_anchor): the part of its
+  // brightness change that the light's distance and power explain is not taken for exposure.
+  // Tracks without a factor at either end give no candidate. Switching between frames with and
+  // without factors restarts the anchor chain (as a model change does).
+  const ExposureEstimate& update(const TrackedFrame& tracked, const std::vector<double>* log_illumination);
   const ExposureEstimate& last() const { return last_; }
   void reset();
 
@@ -91,13 +102,15 @@ private:
   struct Anchor {
     PatchSamples irradiance;  // G(I)/V, -1 where clipped
     double log_exposure = 0.0;
+    double log_illumination = 0.0;  // log(P / d^2) when anchored (0 without a light model)
   };
   // G(I)/V at the patch pixels around `position`, -1 where a grey value is clipped; false when
   // the patch does not fit in the image.
   bool irradiance_patch(const cv::Mat& intensity, const Eigen::Vector2d& position, PatchSamples& irradiance) const;
   // log of the ratio of the patch irradiance sums over the pixels valid in both; false when too few.
   bool log_irradiance_ratio(const PatchSamples& now, const PatchSamples& anchor, double& log_ratio) const;
-  void anchor_all(const TrackedFrame& tracked, double log_exposure, bool only_new);
+  void anchor_all(const TrackedFrame& tracked, double log_exposure, bool only_new,
+                  const std::vector<double>* log_illumination);
   const ExposureEstimate& keep(const TrackedFrame& tracked, ExposureStatus status, std::string reason);
 
   ExposureEstimatorOptions options_;
@@ -111,6 +124,7 @@ private:
   std::vector<PatchSamples> irradiance_;  // of tracked.tracks, this frame
   std::vector<char> irradiance_valid_;
   bool model_changed_ = false;
+  bool illumination_modelled_ = false;  // the last frame came with light factors
 };
 
 }  // namespace nirslam

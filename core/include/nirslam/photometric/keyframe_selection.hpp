@@ -35,6 +35,9 @@ struct KeyframeObservation {
   Eigen::Vector2d position = Eigen::Vector2d::Zero();  // track centre, pixels
   std::array<float, kBackendPixels> grey{};            // 0..255, -1 where clipped
   std::array<float, kBackendPixels> gradient_sq{};     // |grad I|^2, grey levels^2 per px^2
+  // log(P / d^2) of the light at the track (illumination_factor.hpp); 0 without a light model
+  // (every factor 1), NaN where the distance is unknown (the observation is left out).
+  float log_illumination = 0.0f;
 };
 
 struct PhotometricKeyframe {
@@ -44,15 +47,18 @@ struct PhotometricKeyframe {
   int height = 0;
   double exposure = 1.0;          // the reported exposure x gain when known, else the front end's estimate
   bool exposure_known = false;    // reported by the source (and the back end is told to trust it)
+  bool illumination_modelled = false;  // observations carry log_illumination (the light's factor)
   std::vector<KeyframeObservation> observations;
 };
 
 // The keyframe's back-end data from a tracked frame and its exposure estimate. `exposure` is what
 // the keyframe starts with (reported or estimated). black_level / saturation_level: fractions of
 // full scale beyond which a pixel counts as clipped.
+// `log_illumination`, when given, holds each track's log(P / d^2) (aligned with tracked.tracks).
 PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, double timestamp_s, double exposure,
                                               bool exposure_known, double black_level = 0.03,
-                                              double saturation_level = 0.97);
+                                              double saturation_level = 0.97,
+                                              const std::vector<double>* log_illumination = nullptr);
 
 struct KeyframeSelectionOptions {
   double min_interval_s = 0.05;             // at most 20 keyframes a second

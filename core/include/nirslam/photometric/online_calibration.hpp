@@ -21,8 +21,10 @@
 //  - PowerSweep: the response was calibrated before from an illuminator power sweep (radiance
 //    proportional to power; options.response_from_power_sweep) and is held; V and e estimated.
 //  - Normalisation: no reported exposure; the first good frame has exposure 1 (relative units),
-//    the back end holds the oldest keyframe of its window, and the gamma is pinned only by the
-//    response basis and the weak prior towards options.backend.initial_response.
+//    the back end holds the oldest keyframe of its window, and the gamma, which the data cannot
+//    determine, is pinned only by the response basis and the prior towards the initial response,
+//    or, with backend.gamma_gauge_weight > 0, pulled to a normalisation (photometric_backend.hpp;
+//    off by default, as measured there); ambiguity_detail says which.
 
 #include <condition_variable>
 #include <cstdint>
@@ -39,6 +41,7 @@
 
 #include "nirslam/image/frame.hpp"
 #include "nirslam/photometric/exposure_estimator.hpp"
+#include "nirslam/photometric/illumination_factor.hpp"
 #include "nirslam/photometric/keyframe_selection.hpp"
 #include "nirslam/photometric/photometric_backend.hpp"
 #include "nirslam/photometric/photometric_tracker.hpp"
@@ -110,6 +113,11 @@ public:
 
   // Front end on the caller's thread; keyframes go to the back end (never blocks on it).
   CorrectedFrame process(const Frame& frame);
+  // The same under a co-located light whose distance to the tracked points the caller knows
+  // (illumination_factor.hpp): the exposure estimate and the back end's energy carry the
+  // (d_ref/d)^2 (P/P_ref) factor of every tracked point. Once frames come with it, keyframes
+  // without it are left out of the back end's windows that have it.
+  CorrectedFrame process(const Frame& frame, const FrameIllumination& illumination);
   // The latest estimate (never null; version 0 = the initial model), from any thread.
   std::shared_ptr<const PhotometricEstimate> estimate() const;
   // Per processed frame, caller's thread.
@@ -130,6 +138,7 @@ private:
   void publish(const BackendStep& step);
   void submit_and_wait(Job::Kind kind);
   std::shared_ptr<const PhotometricEstimate> initial_estimate() const;
+  CorrectedFrame process_frame(const Frame& frame, const FrameIllumination* illumination);
   void correct(const Frame& frame, const TrackedFrame& tracked, cv::Mat& out);
 
   OnlineCalibrationOptions options_;
@@ -139,6 +148,7 @@ private:
   ExposureEstimator exposure_;
   KeyframeSelector selector_;
   std::vector<ExposureSample> history_;
+  std::vector<double> log_illumination_;  // per track of the current frame
   int applied_version_ = 0;
   std::vector<float> inverse_lut_;   // G at 256 grey levels
   cv::Mat inverse_vignette_;         // 1 / V, for the current size and model

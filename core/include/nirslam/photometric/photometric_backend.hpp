@@ -33,7 +33,9 @@
 // alternates the two updates; eliminating converges in far fewer iterations because exposure and
 // radiance are strongly coupled). A step is accepted only if it lowers the cost and keeps f
 // strictly monotonic (f' > 0 at 256 points of u, a dot product each with a tabulated basis
-// derivative) and V positive; an invalid step is halved (backtracking) before lambda grows, and a
+// derivative) and V plausible (positive and not rising towards the rim, VignetteModel::
+// is_plausible, unless options.vignette_monotonic is off: a halo factor of a lamp whose beam
+// is wider than the lens's vignetting could rise off-centre; then only V > 0 is required); an invalid step is halved (backtracking) before lambda grows, and a
 // soft penalty on f' below options.monotonic_margin lets the solver slide along the monotonicity
 // boundary instead of stopping at it (a linear response, f' = 2u in u, lies on that boundary).
 //
@@ -43,15 +45,35 @@
 // initial response, the linear response f(X) = X and the basis mean sqrt(X), each with the current
 // and with the initial vignette), each with its own radiances and a few LM iterations, and
 // continues from the cheapest. (The linear start is the exact linear preset; the other presets
-// are not among the starts.)
+// are not among the starts.) With known exposures there is one more start, fitted to the data
+// without the LM's local minima: the log inverse response on the 256 grey levels from
+// log G(I) - log L_p = log(e V a) (linear least squares with a smoothness term, Debevec and
+// Malik's method, radiances eliminated per point), then the 4 coefficients fitted to it over the
+// observed grey range by Gauss-Newton. (Without it, on a room sequence with an 8x exposure swing,
+// the LM settled 22 grey levels off in a basin the four fixed starts all fall into.)
+//
+// Co-located light: each observation carries the factor a of illumination_factor.hpp (1 when the
+// caller gave no distances), and every e V above is e V a: the radiances are then those at each
+// point's first observation's distance and power.
 //
 // Ambiguity: with exposures fixed (reported by the source), f, V and L are determined. Otherwise
 // the reference keyframe's exposure (the oldest in the window) is held, which fixes the scale,
-// and the gamma (f(X^g), e^g, V^g, L^g fit almost equally well) is pinned only by the response
-// basis and a weak prior pulling c towards the initial response. See online_calibration.hpp.
+// and the gamma (f(X^g), e^g, V^g, L^g fit the data almost equally well: G^g / (e^g V^g) = L^g)
+// is pinned by the response basis and the weak prior towards the initial response, and, when
+// options.gamma_gauge_weight > 0, by a normalisation: the irradiance of grey level
+// options.gamma_gauge_grey, X_gauge(c) = f^-1(grey / 255), is pulled to its value under the
+// initial response (for the gamma preset and grey 128: 0.220) by a quadratic penalty of that
+// weight per observation (dX/dc = -2u h(u) / f'(u), as in the residual's Jacobian). It is OFF by
+// default: measured on room/log without reported exposures, weight 1e3 holds X_gauge within 4 %
+// but the fit falls into a worse minimum (response 45 grey levels off, 44 after bringing the truth
+// to the same gauge) than without it (14 / 15); 1e5 holds it to 0.1 % and fails (residual 9.8
+// grey levels). A penalty inside the LM fights the solver; re-gauging after each solve (mapping
+// the solution along the family to X_gauge) is the way to do it, not done yet.
+// See online_calibration.hpp.
 
 #include <cstdint>
 #include <deque>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -87,6 +109,14 @@ double photometric_residual(const InverseResponse& inverse, const Eigen::Vector3
                             double radiance, double grey, double radius, PhotometricJacobian* jacobian = nullptr,
                             double* irradiance = nullptr, double* grey_per_irradiance = nullptr);
 
+// The residual under a co-located light (illumination_factor.hpp): r = G / (e V a) - L with the
+// known factor a = (d_ref / d)^2 (P / P_ref). The Jacobian as above (dr/de = -G / (e^2 V a)); with
+// d_residual_d_log_illumination, dr/d(log a) = -G / (e V a), from which dr/dd = -2/d dr/d(log a)
+// and dr/dP = 1/P dr/d(log a) follow.
+double lit_photometric_residual(const InverseResponse& inverse, const Eigen::Vector3d& v, double exposure,
+                                double radiance, double grey, double radius, double illumination,
+                                PhotometricJacobian* jacobian = nullptr, double* d_residual_d_log_illumination = nullptr);
+
 struct PhotometricBackendOptions {
   ResponseModel initial_response = ResponseModel::from_preset(ResponsePreset::Gamma);
   VignetteModel initial_vignette;
@@ -104,10 +134,14 @@ struct PhotometricBackendOptions {
   double coefficient_prior_weight = 1e-4;  // per observation, on (c - c_initial), in weighted-residual units
   double min_exposure_ratio = 1.15;   // max/min exposure in the window below which f is not estimated
   double min_radius_span = 0.1;       // V is estimated when min_points / 2 points span this range of radii
+  bool vignette_monotonic = true;     // every accepted V falls (weakly) from the centre to the rim
   double convergence_relative = 1e-6; // stop when the cost drops by less than this fraction
   double monotonic_margin = 0.01;     // f'(u) below this (at 256 points) is penalised ...
   double monotonic_penalty_weight = 100.0;  // ... with this weight per observation
+  double gamma_gauge_grey = 128.0;    // without known exposures, f^-1 at this grey level is held ...
+  double gamma_gauge_weight = 0.0;    // ... at the initial response's value, with this weight per observation (0: off, see above)
   bool multi_start = true;            // probe several starting responses (see above)
+  bool data_driven_start = true;      // with known exposures, also start from a direct fit (see above)
   int multi_start_every = 20;         // online updates between two multi-starts
   int multi_start_probe_iterations = 3;
 };
@@ -156,6 +190,7 @@ private:
     double grey = 0.0;       // 0..255
     double radius = 0.0;
     double gradient_weight = 1.0;
+    double illumination = 1.0;  // the light's factor a relative to the point's first observation
   };
   // One candidate solution: the globals, the radiances and u = sqrt(f^-1(grey)) per observation.
   struct State {
@@ -170,6 +205,11 @@ private:
   void update_u(State& state) const;
   double data_cost(const State& state, double delta) const;
   void initialise_radiances(State& state) const;
+  // The response fitted directly to the observations of known-exposure keyframes (see above);
+  // std::nullopt when too few points or the fit fails.
+  std::optional<Eigen::Vector4d> data_driven_response(const std::vector<double>& exposure, const std::vector<bool>& known,
+                                                      const Eigen::Vector3d& v, double grey_low, double grey_high,
+                                                      const Eigen::Vector4d& start) const;
   PhotometricBackendOptions options_;
   ResponseModel response_;
   VignetteModel vignette_;

@@ -34,12 +34,23 @@ enum class PipelineMode {
   Quality,     // image quality only (entropy, clipping, features): no calibration, no odometry
   Odometry,    // plain direct odometry on the raw frames, affine brightness free (plain DSO)
   Calibrated,  // online photometric calibration, odometry on G(I)/V with the estimated exposures
+  Illuminated,  // Calibrated + the co-located lamp's distance and power factor in the odometry
+  // Odometry + the lamp's factor, without calibration: the correction's own effect on raw frames
+  // (not in the bench order: the response is not linearised, so the factor is approximate).
+  OdometryIlluminated,
 };
 std::string_view to_string(PipelineMode mode);
-// "quality", "odometry", "calibrated"; std::nullopt for anything else.
+// "quality", "odometry", "calibrated", "illuminated", "odometry-illuminated"; std::nullopt for
+// anything else.
 std::optional<PipelineMode> parse_pipeline_mode(std::string_view name);
-// The modes in the order `bench` compares them (each adds one stage to the one before).
+// Every mode, in the order above (for mode pickers).
+std::vector<PipelineMode> pipeline_modes();
+// The modes in the order `bench` compares them (each adds one stage to the one before): the
+// paper's Table 2 columns odometry, calibrated, illuminated.
 std::vector<PipelineMode> odometry_modes();
+// What a mode runs.
+bool runs_calibration(PipelineMode mode);
+bool corrects_illuminator(PipelineMode mode);
 
 struct PipelineOptions {
   PipelineMode mode = PipelineMode::Calibrated;

@@ -19,6 +19,14 @@
 // of the same primitive are shaded once at their mean hit point (as multisample anti-aliasing
 // does on GPUs), with the texture band-limited to the pixel's footprint on the surface (see
 // texture.hpp); pixels across geometric edges average the surfaces by coverage.
+// Distance-independent texture (ShadingOptions::texture_footprint_m > 0): the texture is filtered
+// to that fixed footprint in surface units instead of the pixel's, so a surface point has the same
+// albedo from every distance and angle (the pixel-footprint filter makes it darker or lighter as
+// fine detail fades with distance, which breaks the constant radiance that photometric
+// calibration's ground truth assumes). Where a pixel's footprint is larger than that (far or
+// grazing surfaces) the texture is then under-filtered: it aliases unless supersampling averages
+// it. Lambertian-only shading drops the glossy floor's mirror term, whose radiance depends on the
+// viewing direction.
 // Motion blur: with one pose per subsample time slot, each subsample sees the scene at its own
 // time within the exposure and is shaded on its own.
 
@@ -52,6 +60,12 @@ struct Illuminator {
   double axial_intensity() const;
 };
 
+// How surfaces are shaded beyond the radiometry (see the header comment).
+struct ShadingOptions {
+  double texture_footprint_m = 0.0;  // 0: the texture follows the pixel footprint; > 0: this, fixed
+  bool glossy_floor = true;                // false: Lambertian everywhere
+};
+
 struct Lighting {
   Illuminator illuminator;
   double ambient_irradiance = 0.0;  // W m^-2 from the sky hemisphere
@@ -61,11 +75,13 @@ struct Lighting {
 class Renderer {
 public:
   // supersampling: 1..4 rays per pixel side.
-  Renderer(std::shared_ptr<const Scene> scene, std::shared_ptr<const CameraModel> camera, int supersampling = 2);
+  Renderer(std::shared_ptr<const Scene> scene, std::shared_ptr<const CameraModel> camera, int supersampling = 2,
+           ShadingOptions shading = {});
 
   const Scene& scene() const { return *scene_; }
   const CameraModel& camera() const { return *camera_; }
   int supersampling() const { return ss_; }
+  const ShadingOptions& shading() const { return shading_; }
   // Subsample time slots for motion blur: one per subsample.
   int time_slots() const { return ss_ * ss_; }
   // The time slot of subsample (sx, sy), spread so time and position do not correlate.
@@ -100,6 +116,7 @@ private:
   std::shared_ptr<const Scene> scene_;
   std::shared_ptr<const CameraModel> camera_;
   int ss_;
+  ShadingOptions shading_;
   int width_, height_;
   // Per pixel, in tile order (see build_rays): ss*ss unit rays (zero when invalid), the centre
   // ray, the pixel's angular size (rad).

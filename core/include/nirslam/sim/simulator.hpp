@@ -20,6 +20,18 @@
 // the target; the exposure is multiplied by (G(target) / G(m))^damping (the ratio clamped to
 // [0.5, 2], a 2 % dead band), kept within [min, max] exposure (max at most the frame period);
 // beyond the longest exposure the gain rises up to max_gain, and falls first when it is brighter.
+// A wandering target (ae_target_swing > 0) scales G(target) of frame i by
+// exp(swing * sin(2 pi i / ae_target_period_frames)): the exposure then keeps swinging over a
+// range of about exp(2 swing), as in the auto-exposure videos photometric calibration is made for
+// (a settled auto exposure hardly varies, which leaves the response unobservable).
+//
+// Texture filtering: PixelFootprint (default) band-limits the texture to each pixel's footprint,
+// the look of a real camera, but a surface point's radiance then depends on the viewing distance.
+// DistanceIndependent filters it to the fixed texture_footprint_m on the surface (and drops the
+// glossy floor's view-dependent mirror term), so with the lamp off a point's radiance is the same
+// from every pose: the ground truth of photometric calibration. Surfaces where a pixel covers more
+// than texture_footprint_m (beyond about texture_footprint_m * fx metres at normal incidence, or
+// at grazing angles) alias with supersampling 1.
 
 #include <cstdint>
 #include <memory>
@@ -44,6 +56,7 @@ namespace nirslam {
 
 enum class SimCameraModel { Pinhole, Fov };
 enum class ExposureMode { Auto, Fixed };
+enum class TextureFiltering { PixelFootprint, DistanceIndependent };
 
 struct SimulatorOptions {
   sim::SceneKind scene = sim::SceneKind::Tunnel;
@@ -61,6 +74,8 @@ struct SimulatorOptions {
   std::int64_t frames = 300;         // 0: endless (as a source)
   std::optional<sim::CaptureRule> capture_rule;  // instead of a fixed frame rate
   bool motion_blur = false;          // one time per subsample across the exposure
+  TextureFiltering texture_filtering = TextureFiltering::PixelFootprint;  // see above
+  double texture_footprint_m = 0.05;  // DistanceIndependent: the finest texture detail, metres
 
   // Illuminator and ambient light.
   std::vector<double> powers_w{50.0};  // cycled every power_step_frames (one value: constant)
@@ -86,6 +101,8 @@ struct SimulatorOptions {
   double max_exposure_ms = 30.0;  // capped at the frame period
   double target_grey = 0.35;      // auto exposure's mean grey target, fraction of full scale
   double ae_damping = 0.35;
+  double ae_target_swing = 0.0;          // wandering target (see above); 0: fixed target
+  double ae_target_period_frames = 60.0;
   double max_gain = 1.0;          // 1: exposure only
 };
 
@@ -131,11 +148,23 @@ public:
 
   // Renders the radiance at `pose` (with motion blur over exposure_ms when enabled).
   void render_radiance(double t, double exposure_ms, double power_w, cv::Mat& radiance, cv::Mat* depth = nullptr) const;
+  // The halo factor H = V B the calibration estimates under the co-located lamp: the lens
+  // vignetting times the beam pattern cos^m(alpha) at the pixel's angle alpha off the axis
+  // (renderer.hpp), fitted by the radial polynomial in least squares over 64 radii.
+  VignetteModel halo_factor() const;
+  // Ground truth for the illuminator-aware calibration: the distance in metres from the lamp to
+  // the surface seen at `pixel`, from a depth map of next(true) (nearest pixel); std::nullopt
+  // outside the image or where the ray left the scene.
+  std::optional<double> light_distance(const cv::Mat& depth, const Eigen::Vector2d& pixel) const;
   // The sensor: radiance -> image, with noise drawn from (seed, noise_key, pixel).
   Frame expose(const cv::Mat& radiance, double exposure_ms, double gain, std::uint64_t noise_key,
                double* mean_grey = nullptr) const;
   // One auto-exposure step from the mean grey of the last frame: the next (exposure, gain).
-  std::pair<double, double> auto_exposure_step(double exposure_ms, double gain, double mean_grey) const;
+  // `frame` is the index of the last frame (for the wandering target).
+  std::pair<double, double> auto_exposure_step(double exposure_ms, double gain, double mean_grey,
+                                               std::int64_t frame = 0) const;
+  // The renderer's shading options these simulator options ask for.
+  static sim::ShadingOptions shading_options(const SimulatorOptions& options);
 
 private:
   SimulatorOptions options_;

@@ -1,0 +1,49 @@
+#pragma once
+
+// The co-located illuminator in the photometric calibration (issue 8, calibration side). With the
+// lamp beside the lens as the main light, the irradiance on a surface point p in frame i is
+// J0 P_i B(alpha) cos(theta_i) / d_i^2, so the radiance the camera sees changes with the point's
+// distance d_i to the light and the lamp's power P_i. The calibration's residual (Eq. 2-2) then
+// carries the factor
+//
+//   a_i = (d_ref / d_i)^2 * (P_i / P_ref),   r_i^p = G(I_i^p) / (e_i V(r_i^p) a_i) - L_p,
+//
+// L_p now the point's radiance at the reference distance and power (its first usable
+// observation). B(alpha) stays with the pixel (alpha is, for a light a few centimetres from the
+// lens, the pixel's angle off the optical axis), so it is estimated as part of the halo factor
+// H(x) = V(x) B(x) that the vignette polynomial models. cos(theta_i) needs a surface normal, which
+// a per-pixel distance does not give: it is left out (for a wall approached head-on it stays 1).
+//
+// Factors are carried in the log domain: log a_i = log_illumination(P_i, d_i) - log_illumination
+// (P_ref, d_ref), with log_illumination = log P - 2 log d, and NaN where a distance is unknown
+// (such observations are left out, never guessed). Without any FrameIllumination every factor is
+// 1, the constant-radiance model of issue 6.
+
+#include <cmath>
+#include <functional>
+#include <optional>
+
+#include <Eigen/Core>
+
+namespace nirslam {
+
+// What the caller knows about the light for one frame: the pipeline from the odometry's depths
+// and pose, tests from the simulator's ground truth.
+struct FrameIllumination {
+  // Distance in metres from the illuminator to the surface seen at `pixel` (full-resolution pixel
+  // coordinates of the frame); std::nullopt where unknown.
+  std::function<std::optional<double>(const Eigen::Vector2d& pixel)> light_distance_m;
+  // The lamp's power; std::nullopt: Frame::illuminator_power_w, and 1 when that is missing too.
+  std::optional<double> power_w;
+};
+
+// log(P / d^2); NaN when the distance or power is not usable. With d_log_d, the derivative of the
+// result with respect to d (-2 / d).
+inline double log_illumination(double power_w, std::optional<double> distance_m, double* d_log_d = nullptr) {
+  if (!distance_m || !(*distance_m > 1e-3) || !std::isfinite(*distance_m) || !(power_w > 0.0) || !std::isfinite(power_w))
+    return std::nan("");
+  if (d_log_d != nullptr) *d_log_d = -2.0 / *distance_m;
+  return std::log(power_w) - 2.0 * std::log(*distance_m);
+}
+
+}  // namespace nirslam

@@ -1,0 +1,214 @@
+// The co-located lamp's factor g between a host and a target view (photometric_residual.hpp):
+// its value against distances, beam angles and incidence angles computed directly from 3-D
+// points, its log-derivatives and the residual's Jacobians with it against numeric
+// differentiation, and the surface normals fitted to neighbouring points.
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include "nirslam/odometry/photometric_residual.hpp"
+#include "nirslam/odometry/surface_normals.hpp"
+
+namespace nirslam::odometry {
+namespace {
+
+const LevelCamera kCamera{300.0, 310.0, 159.5, 119.5, 320, 240};
+
+// Host and target poses (T_cam_world) with a clear approach along the optical axis.
+const SE3 kHost = SE3::exp((Vector6d() << 0.1, -0.05, 0.2, 0.02, -0.03, 0.01).finished());
+const SE3 kTarget = SE3::exp((Vector6d() << 0.15, -0.02, -0.35, 0.05, -0.01, 0.04).finished());
+
+struct Case {
+  Eigen::Vector3d offset;
+  double beam;
+  bool normal;
+};
+const Case kCases[] = {{Eigen::Vector3d::Zero(), 0.0, false},
+                       {Eigen::Vector3d(0.02, 0.05, -0.01), 0.0, false},
+                       {Eigen::Vector3d(0.0, 0.05, 0.0), 4.8, false},
+                       {Eigen::Vector3d(0.03, 0.05, 0.01), 4.8, true}};
+
+// A normal in the host frame that faces the camera, tilted away from the viewing ray.
+Eigen::Vector3d tilted_normal(const Eigen::Vector3d& ray) {
+  return (-ray.normalized() + Eigen::Vector3d(0.3, -0.2, 0.1)).normalized();
+}
+
+// cos of the angle at X between `direction` and the direction from X to the light.
+double cos_to_light(const Eigen::Vector3d& X, const Eigen::Vector3d& light, const Eigen::Vector3d& direction) {
+  return direction.dot((light - X).normalized());
+}
+
+TEST(IlluminatorFactor, MatchesDistancesBeamAndIncidenceOfSyntheticPointPairs) {
+  const SE3 T_th = kTarget * kHost.inverse();
+  const Eigen::Matrix3d R = T_th.rotation_matrix();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(40.0, 280.0), v(30.0, 210.0), depth(0.8, 4.0);
+  for (const Case& c : kCases) {
+    const LampGeometry lamp{true, c.offset, c.beam};
+    for (int k = 0; k < 20; ++k) {
+      const Eigen::Vector2d pixel(u(rng), v(rng));
+      const double z = depth(rng);
+      const Eigen::Vector3d ray = kCamera.unproject(pixel);
+      const Eigen::Vector3d X_h = ray * z;
+      const Eigen::Vector3d X_t = T_th * X_h;
+      const Eigen::Vector3d n_h = tilted_normal(ray);
+      // Direct: (d_h / d_t)^2 (cos alpha_t / cos alpha_h)^m (cos theta_t / cos theta_h).
+      double expected = (X_h - c.offset).squaredNorm() / (X_t - c.offset).squaredNorm();
+      if (c.beam > 0.0) {
+        const double cos_alpha_h = (X_h - c.offset).normalized().z();
+        const double cos_alpha_t = (X_t - c.offset).normalized().z();
+        expected *= std::pow(cos_alpha_t / cos_alpha_h, c.beam);
+      }
+      if (c.normal) expected *= cos_to_light(X_t, c.offset, R * n_h) / cos_to_light(X_h, c.offset, n_h);
+      LampFactor f;
+      ASSERT_TRUE(lamp_factor(ray, 1.0 / z, R, T_th.translation(), lamp, f, c.normal ? &n_h : nullptr));
+      EXPECT_NEAR(f.g, expected, 1e-9 * expected) << "case beam " << c.beam << " normal " << c.normal;
+      EXPECT_NEAR(lamp_factor_value(ray, 1.0 / z, R, T_th.translation(), lamp, c.normal ? &n_h : nullptr), f.g,
+                  1e-12 * f.g);
+    }
+  }
+  // The target is closer (translation -0.35 along z): the same points are brighter there.
+  LampFactor centre;
+  ASSERT_TRUE(lamp_factor(kCamera.unproject({160.0, 120.0}), 0.5, R, T_th.translation(), LampGeometry{true, {}, 0.0},
+                          centre));
+  EXPECT_GT(centre.g, 1.1);
+}
+
+TEST(IlluminatorFactor, PointAtInfinityKeepsItsBrightness) {
+  const SE3 T_th = kTarget * kHost.inverse();
+  const LampGeometry lamp{true, Eigen::Vector3d(0.02, 0.05, 0.0), 0.0};
+  const Eigen::Vector3d ray = kCamera.unproject({100.0, 60.0});
+  LampFactor f;
+  ASSERT_TRUE(lamp_factor(ray, 0.0, T_th.rotation_matrix(), T_th.translation(), lamp, f));
+  EXPECT_NEAR(f.g, 1.0, 1e-12);
+}
+
+TEST(IlluminatorFactor, LogDerivativesMatchNumericDifferentiation) {
+  const SE3 T_th = kTarget * kHost.inverse();
+  const Eigen::Vector3d ray = kCamera.unproject({120.0, 150.0});
+  const Eigen::Vector3d n_h = tilted_normal(ray);
+  const double rho = 0.6;
+  for (const Case& c : kCases) {
+    const LampGeometry lamp{true, c.offset, c.beam};
+    const Eigen::Vector3d* normal = c.normal ? &n_h : nullptr;
+    auto log_g = [&](const SE3& T, double r) {
+      return std::log(lamp_factor_value(ray, r, T.rotation_matrix(), T.translation(), lamp, normal));
+    };
+    LampFactor f;
+    ASSERT_TRUE(lamp_factor(ray, rho, T_th.rotation_matrix(), T_th.translation(), lamp, f, normal));
+    const double eps = 1e-6;
+    for (int i = 0; i < 6; ++i) {
+      Vector6d d = Vector6d::Zero();
+      d[i] = eps;
+      const double numeric = (log_g(SE3::exp(d) * T_th, rho) - log_g(SE3::exp(-d) * T_th, rho)) / (2 * eps);
+      EXPECT_NEAR(f.d_log_g_d_pose[i], numeric, 1e-6 + 1e-5 * std::abs(numeric))
+          << "pose " << i << " beam " << c.beam << " normal " << c.normal;
+    }
+    const double numeric_rho = (log_g(T_th, rho + eps) - log_g(T_th, rho - eps)) / (2 * eps);
+    EXPECT_NEAR(f.d_log_g_d_rho, numeric_rho, 1e-6 + 1e-5 * std::abs(numeric_rho)) << "rho, beam " << c.beam;
+    EXPECT_GT(f.d_log_g_d_pose.norm(), 0.1);  // an approach changes g: not trivially zero
+  }
+}
+
+// A smooth image, so bilinear interpolation's gradient matches the numeric one closely.
+cv::Mat smooth_image(int w, int h) {
+  cv::Mat image(h, w, CV_32FC1);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      image.at<float>(y, x) = static_cast<float>(120.0 + 60.0 * std::sin(0.02 * x + 0.3) * std::cos(0.017 * y) +
+                                                 30.0 * std::sin(0.011 * (x + y)));
+  return image;
+}
+
+TEST(IlluminatorFactor, ResidualJacobiansWithTheLampMatchNumericDifferentiation) {
+  const ImagePyramid target(smooth_image(320, 240), 1);
+  const Eigen::Vector2d pixel(140.0, 100.0);
+  const Eigen::Vector3d n_h = tilted_normal(kCamera.unproject(pixel));
+  const double a_h = 0.1, b_h = 3.0, a_t = -0.05, b_t = 5.0, rho = 0.5, intensity = 90.0;
+  const LampGeometry lamp{true, Eigen::Vector3d(0.03, 0.05, 0.01), 4.8};
+  auto residual = [&](const SE3& Th, const SE3& Tt, double ah, double bh, double at, double bt, double r) {
+    ResidualJacobian out;
+    const SE3 T = Tt * Th.inverse();
+    EXPECT_TRUE(linearize_residual(kCamera, target.level(0), T, T, pixel, r, intensity,
+                                   affine_transfer(ah, bh, 1.0, at, bt, 1.3), out, lamp, &n_h));
+    return out.residual;
+  };
+  ResidualJacobian J;
+  const SE3 T_th = kTarget * kHost.inverse();
+  ASSERT_TRUE(linearize_residual(kCamera, target.level(0), T_th, T_th, pixel, rho, intensity,
+                                 affine_transfer(a_h, b_h, 1.0, a_t, b_t, 1.3), J, lamp, &n_h));
+  auto expect_close = [](double analytic, double numeric, const char* what, int i) {
+    EXPECT_NEAR(analytic, numeric, 0.03 * std::abs(numeric) + 0.05) << what << " " << i;
+  };
+  const double eps = 1e-3;
+  for (int i = 0; i < 6; ++i) {
+    Vector6d d = Vector6d::Zero();
+    d[i] = eps;
+    expect_close(J.d_host[i],
+                 (residual(SE3::exp(d) * kHost, kTarget, a_h, b_h, a_t, b_t, rho) -
+                  residual(SE3::exp(-d) * kHost, kTarget, a_h, b_h, a_t, b_t, rho)) / (2 * eps),
+                 "host pose", i);
+    expect_close(J.d_target[i],
+                 (residual(kHost, SE3::exp(d) * kTarget, a_h, b_h, a_t, b_t, rho) -
+                  residual(kHost, SE3::exp(-d) * kTarget, a_h, b_h, a_t, b_t, rho)) / (2 * eps),
+                 "target pose", i);
+  }
+  const double e2 = 1e-4;
+  expect_close(J.d_host[6],
+               (residual(kHost, kTarget, a_h + e2, b_h, a_t, b_t, rho) - residual(kHost, kTarget, a_h - e2, b_h, a_t, b_t, rho)) /
+                   (2 * e2),
+               "host a", 6);
+  expect_close(J.d_host[7],
+               (residual(kHost, kTarget, a_h, b_h + e2, a_t, b_t, rho) - residual(kHost, kTarget, a_h, b_h - e2, a_t, b_t, rho)) /
+                   (2 * e2),
+               "host b", 7);
+  expect_close(J.d_target[6],
+               (residual(kHost, kTarget, a_h, b_h, a_t + e2, b_t, rho) - residual(kHost, kTarget, a_h, b_h, a_t - e2, b_t, rho)) /
+                   (2 * e2),
+               "target a", 6);
+  expect_close(J.d_rho,
+               (residual(kHost, kTarget, a_h, b_h, a_t, b_t, rho + eps) - residual(kHost, kTarget, a_h, b_h, a_t, b_t, rho - eps)) /
+                   (2 * eps),
+               "inverse depth", 0);
+  // The lamp's share of the inverse-depth derivative is not negligible here (an approach).
+  ResidualJacobian plain;
+  ASSERT_TRUE(linearize_residual(kCamera, target.level(0), T_th, T_th, pixel, rho, intensity,
+                                 affine_transfer(a_h, b_h, 1.0, a_t, b_t, 1.3), plain));
+  EXPECT_GT(std::abs(J.d_rho - plain.d_rho), 1.0);
+}
+
+TEST(IlluminatorFactor, SurfaceNormalsOfPointsOnATiltedPlane) {
+  // Points on the plane n . X = -1.5 (n facing the camera), plus a few on a far background.
+  const Eigen::Vector3d n = Eigen::Vector3d(0.3, -0.2, -1.0).normalized();
+  std::vector<WindowPoint> points;
+  for (int y = 20; y < 220; y += 9) {
+    for (int x = 20; x < 300; x += 9) {
+      WindowPoint p;
+      p.pixel = Eigen::Vector2d(x, y);
+      const Eigen::Vector3d ray = kCamera.unproject(p.pixel);
+      p.inverse_depth = -n.dot(ray) / 1.5;  // depth z = 1.5 / (-n . ray)
+      points.push_back(p);
+    }
+  }
+  estimate_surface_normals(kCamera, points);
+  int with_normal = 0;
+  for (const auto& p : points) {
+    if (!p.normal) continue;
+    ++with_normal;
+    EXPECT_GT(p.normal->dot(n), std::cos(1.0 * M_PI / 180.0));
+  }
+  EXPECT_GT(with_normal, static_cast<int>(0.9 * points.size()));
+
+  // A lone point has no neighbours: no normal.
+  std::vector<WindowPoint> lone(1);
+  lone[0].pixel = Eigen::Vector2d(100, 100);
+  lone[0].inverse_depth = 0.5;
+  estimate_surface_normals(kCamera, lone);
+  EXPECT_FALSE(lone[0].normal.has_value());
+}
+
+}  // namespace
+}  // namespace nirslam::odometry

@@ -1,0 +1,313 @@
+// The rig approaches a wall lit only by its own lamp (the simulator's renderer: 1/d^2, the beam
+// and cos(theta), the light 5 cm below the lens). Between the first (host) view and the closer
+// ones, photometric residuals at the true poses and depths are biased without the lamp's factor
+// (the wall brightens as the rig comes closer) and flat with it; with the factor, the coarse
+// tracker also finds the approach better.
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <span>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include "nirslam/camera/camera_model.hpp"
+#include "nirslam/odometry/coarse_tracker.hpp"
+#include "nirslam/odometry/photometric_residual.hpp"
+#include "nirslam/odometry/surface_normals.hpp"
+#include "nirslam/odometry/window_optimizer.hpp"
+#include "nirslam/sim/renderer.hpp"
+#include "nirslam/sim/scene.hpp"
+
+namespace nirslam::odometry {
+namespace {
+
+constexpr int kWidth = 320;
+constexpr int kHeight = 240;
+constexpr double kFocal = 240.0;
+constexpr double kWallY = 4.0;  // the wall's face, world y (world z up)
+
+// A painted wall, 12 m wide and 8 m high, facing -y.
+std::shared_ptr<const sim::Scene> wall_scene() {
+  auto scene = std::make_shared<sim::Scene>();
+  scene->kind = sim::SceneKind::Room;
+  scene->seed = 3;
+  sim::Primitive wall;
+  wall.shape = sim::Shape::Box;
+  wall.lo = Eigen::Vector3f(-6.0f, static_cast<float>(kWallY), -4.0f);
+  wall.hi = Eigen::Vector3f(6.0f, static_cast<float>(kWallY) + 0.3f, 4.0f);
+  wall.side = sim::Material::PaintedWall;
+  wall.seed = 11;
+  scene->primitives.push_back(wall);
+  return scene;
+}
+
+// T_world_cam looking along +y (camera x = world x, camera y = world -z) at `distance` from the
+// wall, slightly off its centre line.
+SE3 pose_at(double distance) {
+  Eigen::Matrix3d R;
+  R.col(0) = Eigen::Vector3d(1, 0, 0);
+  R.col(1) = Eigen::Vector3d(0, 0, -1);
+  R.col(2) = Eigen::Vector3d(0, 1, 0);
+  return SE3(R, Eigen::Vector3d(0.2, kWallY - distance, 0.3));
+}
+
+struct WallSequence {
+  std::vector<double> distances;
+  std::vector<SE3> T_world_cam;
+  std::vector<std::shared_ptr<const ImagePyramid>> images;  // 0..255-ish, the first frame's mean 60
+  cv::Mat host_depth;
+  sim::Illuminator lamp;
+};
+
+const WallSequence& wall_sequence() {
+  static const WallSequence sequence = [] {
+    WallSequence s;
+    auto camera = std::make_shared<PinholeCamera>(kWidth, kHeight,
+                                                  Eigen::Vector4d(kFocal, kFocal, 159.5, 119.5));
+    const sim::Renderer renderer(wall_scene(), camera, 1);
+    sim::Lighting lighting;  // the lamp alone: no ambient light, no sky
+    s.lamp = lighting.illuminator;
+    double scale = 0.0;
+    for (int k = 0; k < 8; ++k) {
+      const double d = 3.0 - 0.2 * k;
+      const SE3 pose = pose_at(d);
+      cv::Mat radiance;
+      cv::Mat depth;
+      renderer.render(std::span<const SE3>(&pose, 1), lighting, radiance, k == 0 ? &depth : nullptr);
+      if (k == 0) {
+        scale = 60.0 / cv::mean(radiance)[0];
+        s.host_depth = depth;
+      }
+      cv::Mat image;
+      radiance.convertTo(image, CV_32F, scale);
+      s.distances.push_back(d);
+      s.T_world_cam.push_back(pose);
+      s.images.push_back(std::make_shared<const ImagePyramid>(image, 3));
+    }
+    return s;
+  }();
+  return sequence;
+}
+
+const LevelCamera kCamera{kFocal, kFocal, 159.5, 119.5, kWidth, kHeight};
+
+// Textured pixels of the host with their true inverse depths.
+std::vector<WindowPoint> host_points(const WallSequence& s) {
+  std::vector<WindowPoint> points;
+  const PyramidLevel& host = s.images[0]->level(0);
+  for (int y = 8; y < kHeight - 8; y += 2) {
+    for (int x = 8; x < kWidth - 8; x += 2) {
+      const Eigen::Vector3f sample = host.data[static_cast<std::size_t>(y * host.width + x)];
+      const float z = s.host_depth.at<float>(y, x);
+      if (sample.tail<2>().norm() < 2.0f || !(z > 0.0f)) continue;
+      WindowPoint p;
+      p.pixel = Eigen::Vector2d(x, y);
+      p.inverse_depth = 1.0 / z;
+      p.host_intensity[4] = sample[0];
+      points.push_back(p);
+    }
+  }
+  return points;
+}
+
+// Least-squares slope of y over x.
+double slope(const std::vector<double>& x, const std::vector<double>& y) {
+  double mx = 0.0, my = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    mx += x[i];
+    my += y[i];
+  }
+  mx /= static_cast<double>(x.size());
+  my /= static_cast<double>(y.size());
+  double sxy = 0.0, sxx = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    sxy += (x[i] - mx) * (y[i] - my);
+    sxx += (x[i] - mx) * (x[i] - mx);
+  }
+  return sxy / sxx;
+}
+
+// Mean residual I_t(warp) - g I_h over the host's points, per target distance, at the true poses
+// and depths (same exposure and power: the affine transfer is the identity).
+std::vector<double> mean_residuals(const WallSequence& s, const std::vector<WindowPoint>& points,
+                                   const LampGeometry& lamp, bool with_normals) {
+  std::vector<double> means;
+  for (std::size_t k = 1; k < s.images.size(); ++k) {
+    const SE3 T_th = s.T_world_cam[k].inverse() * s.T_world_cam[0];
+    double sum = 0.0;
+    int n = 0;
+    for (const WindowPoint& p : points) {
+      ResidualJacobian out;
+      const Eigen::Vector3d* normal = with_normals && p.normal ? &*p.normal : nullptr;
+      if (!linearize_residual(kCamera, s.images[k]->level(0), T_th, T_th, p.pixel, p.inverse_depth,
+                              p.host_intensity[4], AffineTransfer{}, out, lamp, normal))
+        continue;
+      sum += out.residual;
+      ++n;
+    }
+    EXPECT_GT(n, 200) << "target " << k;
+    means.push_back(sum / std::max(1, n));
+  }
+  return means;
+}
+
+TEST(IlluminatorWall, ResidualsWithTheLampFactorAreFlatWhereWithoutItTheyAreBiased) {
+  const WallSequence& s = wall_sequence();
+  std::vector<WindowPoint> points = host_points(s);
+  std::printf("%zu host points\n", points.size());
+  ASSERT_GT(points.size(), 500u);
+  // Normals from the neighbouring points' depths, as the odometry gets them.
+  estimate_surface_normals(kCamera, points);
+  int with_normal = 0;
+  const Eigen::Vector3d wall_normal(0.0, 0.0, -1.0);  // in the camera frame
+  for (const auto& p : points) {
+    if (!p.normal) continue;
+    ++with_normal;
+    EXPECT_GT(p.normal->dot(wall_normal), std::cos(2.0 * M_PI / 180.0));
+  }
+  EXPECT_GT(with_normal, static_cast<int>(0.75 * points.size()));
+
+  const std::vector<double> distances(s.distances.begin() + 1, s.distances.end());
+  const LampGeometry off{};
+  const LampGeometry distance_only{true, s.lamp.offset_cam, 0.0};
+  const LampGeometry full{true, s.lamp.offset_cam, s.lamp.beam_exponent()};
+  const auto plain = mean_residuals(s, points, off, false);
+  const auto by_distance = mean_residuals(s, points, distance_only, false);
+  const auto corrected = mean_residuals(s, points, full, true);
+  std::vector<WindowPoint> true_normals = points;
+  for (auto& p : true_normals) p.normal = wall_normal;
+  const auto corrected_true = mean_residuals(s, true_normals, full, true);
+  const double slope_plain = slope(distances, plain);
+  const double slope_distance = slope(distances, by_distance);
+  const double slope_corrected = slope(distances, corrected);
+  std::printf("mean residual vs distance [grey levels / m]: plain %.2f, 1/d^2 only %.2f, 1/d^2 + beam + cos %.2f\n",
+              slope_plain, slope_distance, slope_corrected);
+  for (std::size_t i = 0; i < distances.size(); ++i)
+    std::printf("  %.1f m: plain %7.2f  1/d^2 %7.2f  full %6.2f\n", distances[i], plain[i], by_distance[i], corrected[i]);
+  // Without the factor the wall brightens strongly as the rig approaches.
+  EXPECT_LT(slope_plain, -40.0);
+  EXPECT_GT(plain.back(), 50.0);
+  // 1/d^2 alone over-corrects: off the axis, the approach also moves points out of the beam and
+  // to more grazing light, so on raw frames the beam and cos(theta) matter as much.
+  EXPECT_GT(slope_distance, 20.0);
+  // With the beam and cos(theta) it is flat: what stays (a few grey levels, the same with the
+  // true normals) is the renderer's texture detail, which grows as the wall comes closer.
+  EXPECT_LT(std::abs(slope_corrected), 0.03 * std::abs(slope_plain));
+  for (std::size_t i = 0; i < corrected.size(); ++i) {
+    EXPECT_LT(std::abs(corrected[i]), 0.06 * plain.back()) << distances[i] << " m";
+    // A fifth of the points get no normal (too few neighbours in a plane): cos(theta) is missing
+    // for them, which the mean shows by a grey level or two.
+    EXPECT_NEAR(corrected[i], corrected_true[i], 3.0) << "normals from neighbours vs the wall's, " << distances[i] << " m";
+  }
+}
+
+TEST(IlluminatorWall, TrackerFindsTheApproachBetterWithTheLampFactor) {
+  const WallSequence& s = wall_sequence();
+  std::vector<WindowPoint> points = host_points(s);
+  estimate_surface_normals(kCamera, points);
+  std::vector<ReferencePoint> reference;
+  for (const auto& p : points)
+    reference.push_back({p.pixel, p.inverse_depth, p.normal ? *p.normal : Eigen::Vector3d::Zero()});
+  const std::size_t last = 2;  // 2.6 m from the wall, 0.4 m closer than the host
+  const SE3 truth = s.T_world_cam[last].inverse() * s.T_world_cam[0];
+  auto track = [&](const LampGeometry& lamp) {
+    CoarseTrackerOptions options;
+    options.lamp = lamp;
+    options.affine_a_prior = 1e-3;  // plain odometry: the affine brightness is free
+    options.affine_b_prior = 1e-3;
+    CoarseTracker tracker(make_level_cameras(kCamera, 3), options);
+    tracker.set_reference(s.images[0], 0.0, 0.0, 1.0, reference);
+    // Frame after frame against the host, each starting from the one before (as the odometry
+    // between keyframes).
+    TrackingEstimate e;
+    e.T_frame_ref = SE3();
+    for (std::size_t k = 1; k <= last; ++k) {
+      e = tracker.track(*s.images[k], 1.0, e.T_frame_ref, e.affine_a, e.affine_b);
+      EXPECT_TRUE(e.valid) << k;
+    }
+    return std::pair<double, double>((e.T_frame_ref.translation() - truth.translation()).norm(), e.rms);
+  };
+  const auto [error_plain, rms_plain] = track(LampGeometry{});
+  const auto [error_lamp, rms_lamp] =
+      track(LampGeometry{true, s.lamp.offset_cam, s.lamp.beam_exponent()});
+  std::printf("tracking 0.4 m of approach: translation error %.4f m (rms %.2f) plain, %.4f m (rms %.2f) with the lamp\n",
+              error_plain, rms_plain, error_lamp, rms_lamp);
+  // The residuals fit far better; the pose a little (the affine brightness absorbs the mean
+  // brightening, not its spread over the image).
+  EXPECT_LT(rms_lamp, 0.6 * rms_plain);
+  EXPECT_LT(error_lamp, error_plain);
+}
+
+// The window (host 3.0 m, targets 2.8 and 2.6 m), poses perturbed, affine brightness free:
+// with the lamp's factor (and its 9-parameter host/target mapping of the Hessian) the
+// optimisation fits the views better and recovers the poses more closely (measured: energy
+// 175k vs 269k, translation error 3.2 vs 4.4 cm; the rest is the renderer's texture detail).
+TEST(IlluminatorWall, WindowOptimisationWithTheLampFactor) {
+  const WallSequence& s = wall_sequence();
+  std::vector<WindowPoint> points = host_points(s);
+  estimate_surface_normals(kCamera, points);
+  auto run = [&](const LampGeometry& lamp, double& energy) {
+    WindowOptions options;
+    options.lamp = lamp;
+    WindowOptimizer window(kCamera, options);
+    std::mt19937 rng(5);
+    std::normal_distribution<double> noise(0.0, 1.0);
+    const std::size_t views[] = {0, 1, 2};
+    for (std::size_t v : views) {
+      WindowFrame f;
+      f.id = static_cast<std::int64_t>(v);
+      f.pyramid = s.images[v];
+      Vector6d d = Vector6d::Zero();
+      if (v > 0) {
+        d.head<3>() = Eigen::Vector3d(noise(rng), noise(rng), noise(rng)) * 0.01;
+        d.tail<3>() = Eigen::Vector3d(noise(rng), noise(rng), noise(rng)) * 0.002;
+      } else {
+        f.pose_prior_weight = 1e8;
+        f.pose_prior = s.T_world_cam[v].inverse();
+      }
+      f.state.T_cam_world = SE3::exp(d) * s.T_world_cam[v].inverse();
+      f.affine_a_prior_weight = 1.0;
+      f.affine_b_prior_weight = 1.0;
+      window.add_frame(std::move(f));
+    }
+    const PyramidLevel& host = s.images[0]->level(0);
+    for (std::size_t i = 0; i < points.size(); i += 2) {
+      WindowPoint p = points[i];
+      for (int k = 0; k < kPatternSize; ++k) {
+        const auto& o = kPattern[static_cast<std::size_t>(k)];
+        p.host_intensity[static_cast<std::size_t>(k)] =
+            host.at(static_cast<int>(p.pixel.x()) + o[0], static_cast<int>(p.pixel.y()) + o[1])[0];
+      }
+      p.inverse_depth_prior_weight = 10.0;  // the scale gauge
+      p.inverse_depth_prior_mean = p.inverse_depth;
+      p.inverse_depth *= 1.0 + 0.05 * noise(rng);
+      window.connect_to_all(p, 0);
+      window.frames()[0].points.push_back(p);
+    }
+    const WindowStatistics stats = window.optimize(20);
+    EXPECT_LT(stats.final_energy, stats.initial_energy);
+    std::printf("  energy %.0f -> %.0f in %d iterations, %d residuals\n", stats.initial_energy, stats.final_energy,
+                stats.iterations, stats.residuals);
+    energy = stats.final_energy;
+    double error = 0.0;
+    for (std::size_t k = 1; k < 3; ++k)
+      error += (window.frames()[k].state.T_cam_world.inverse().translation() -
+                s.T_world_cam[views[k]].translation()).norm();
+    return error;
+  };
+  double energy_plain = 0.0;
+  double energy_lamp = 0.0;
+  const double error_plain = run(LampGeometry{}, energy_plain);
+  const double error_lamp = run(LampGeometry{true, s.lamp.offset_cam, s.lamp.beam_exponent()}, energy_lamp);
+  std::printf("window: translation error %.4f m (energy %.0f) plain, %.4f m (energy %.0f) with the lamp\n", error_plain,
+              energy_plain, error_lamp, energy_lamp);
+  EXPECT_LT(energy_lamp, 0.8 * energy_plain);
+  EXPECT_LT(error_lamp, error_plain);
+}
+
+}  // namespace
+}  // namespace nirslam::odometry

@@ -50,12 +50,12 @@ Application::Layout Application::compute_layout(ImVec2 display) const {
   }
   // The measurement column: about a third of the width, readable at any window size.
   const float width = std::clamp(std::round(0.34f * w), std::min(380.0f, 0.5f * w), 600.0f);
-  const bool left_panels = panels.feed || panels.view3d || panels.illumination || panels.photometric || panels.session || panels.record;
+  const bool left_panels = panels.feed || panels.view3d || panels.illumination || panels.photometric || panels.session || panels.record || panels.camera;
   const float split = !panels.entropy ? w : left_panels ? w - width : 0.0f;
   if (panels.entropy) layout.entropy = {ImVec2(split, top), ImVec2(w, bottom)};
   // Under the feed and the 3-D view, a strip for the illumination and photometric tabs: wide
   // enough for the plots side by side, short enough to leave the views most of the height.
-  const bool strip = panels.illumination || panels.photometric || panels.session || panels.record;
+  const bool strip = panels.illumination || panels.photometric || panels.session || panels.record || panels.camera;
   const bool views = panels.feed || panels.view3d;
   float strip_top = bottom;
   if (strip) {
@@ -98,7 +98,7 @@ void Application::draw(const Snapshot& snapshot) {
     ImGui::End();
     ImGui::PopStyleVar();
   }
-  if (panels.illumination || panels.photometric || panels.session || panels.record) draw_strip(snapshot);
+  if (panels.illumination || panels.photometric || panels.session || panels.record || panels.camera) draw_strip(snapshot);
   if (panels.status) {
     ImGui::PushStyleVar(ImGuiStyleVar_WindowPadding, ImVec2(10.0f, 5.0f));
     ImGui::PushStyleColor(ImGuiCol_WindowBg, to_vec4(rgba(24, 26, 30)));
@@ -124,7 +124,8 @@ void Application::draw_strip(const Snapshot& snapshot) {
   const Tab tabs[] = {{StripTab::Illumination, "Illumination", panels.illumination},
                       {StripTab::Photometric, "Photometric", panels.photometric},
                       {StripTab::Session, "Session", panels.session},
-                      {StripTab::Record, "Record", panels.record}};
+                      {StripTab::Record, "Record", panels.record},
+                      {StripTab::Camera, "Camera", panels.camera}};
   const auto draw_tab = [&](StripTab tab) {
     current_tab_ = tab;
     switch (tab) {
@@ -132,6 +133,7 @@ void Application::draw_strip(const Snapshot& snapshot) {
       case StripTab::Photometric: photometric_.draw(snapshot); break;
       case StripTab::Session: session_.draw(snapshot, post_, session_actions_); break;
       case StripTab::Record: recording_.draw(snapshot, post_, session_actions_); break;
+      case StripTab::Camera: draw_camera_tab(); break;
     }
   };
   int shown = 0;
@@ -162,6 +164,18 @@ void Application::draw_strip(const Snapshot& snapshot) {
   ImGui::End();
 }
 
+void Application::draw_camera_tab() {
+  const std::shared_ptr<CameraControls> controls =
+      session_actions_.camera_controls ? session_actions_.camera_controls() : nullptr;
+  if (!controls) {
+    ImGui::Spacing();
+    ImGui::TextColored(to_vec4(colours::text_dim),
+                       "No camera is streaming. Open one in the Session tab (O): Camera, or the emulated cameras.");
+    return;
+  }
+  camera_.draw(controls->state(), controls.get());
+}
+
 void Application::apply(const UiPreferences& p) {
   feed_.show_corrected = p.feed_corrected;
   feed_.highlight_clipping = p.feed_clipping;
@@ -181,6 +195,8 @@ void Application::apply(const UiPreferences& p) {
     select_tab(StripTab::Session);
   else if (p.strip_tab == "record")
     select_tab(StripTab::Record);
+  else if (p.strip_tab == "camera")
+    select_tab(StripTab::Camera);
   else
     select_tab(StripTab::Illumination);
   if (post_) {
@@ -206,6 +222,7 @@ void Application::capture(UiPreferences& p) const {
     case StripTab::Photometric: p.strip_tab = "photometric"; break;
     case StripTab::Session: p.strip_tab = "session"; break;
     case StripTab::Record: p.strip_tab = "record"; break;
+    case StripTab::Camera: p.strip_tab = "camera"; break;
   }
 }
 
@@ -248,6 +265,7 @@ void Application::run_shortcut(ShortcutAction action, const Snapshot& snapshot) 
     case ShortcutAction::Help: help_.visible = !help_.visible; break;
     case ShortcutAction::ToggleRecording: recording_.toggle_recording(snapshot, post_); break;
     case ShortcutAction::RecordTab: select_tab(StripTab::Record); break;
+    case ShortcutAction::CameraTab: select_tab(StripTab::Camera); break;
   }
 }
 

@@ -9,6 +9,7 @@
 #include "nirslam/config/ui_preferences.hpp"
 #include "nirslam/worker/snapshot.hpp"
 #include "ui/command_sink.hpp"
+#include "ui/panels/camera_panel.hpp"
 #include "ui/panels/control_bar.hpp"
 #include "ui/panels/entropy_panel.hpp"
 #include "ui/panels/feed_panel.hpp"
@@ -34,6 +35,7 @@ struct PanelSet {
   bool photometric = true;
   bool session = true;
   bool record = true;
+  bool camera = true;
   bool view3d = true;
   bool status = true;
 };
@@ -83,10 +85,11 @@ public:
   TrajectoryPanel& view3d() { return view3d_; }
   SessionPanel& session() { return session_; }
   RecordingPanel& recording() { return recording_; }
+  CameraPanel& camera() { return camera_; }
   NotificationArea& notifications() { return notifications_; }
   ShortcutHelp& shortcut_help() { return help_; }
 
-  enum class StripTab { Illumination, Photometric, Session, Record };
+  enum class StripTab { Illumination, Photometric, Session, Record, Camera };
   // The tab to bring to the front on the next draw (the tab bar remembers the operator's choice).
   void select_tab(StripTab tab) { requested_tab_ = tab; }
   StripTab current_tab() const { return current_tab_; }
@@ -95,6 +98,7 @@ private:
   void handle_shortcuts(const Snapshot& snapshot);
   void draw_strip(const Snapshot& snapshot);
   void run_shortcut(ShortcutAction action, const Snapshot& snapshot);
+  void draw_camera_tab();
 
   CommandSink post_;
   ControlBar controls_;
@@ -106,6 +110,7 @@ private:
   StatusBar status_;
   SessionPanel session_;
   RecordingPanel recording_;
+  CameraPanel camera_;
   SessionActions session_actions_;
   NotificationArea notifications_;
   ShortcutHelp help_;

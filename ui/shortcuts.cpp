@@ -18,6 +18,7 @@ constexpr std::array kShortcuts = {
     Shortcut{'p', "P", "Photometric tab", ShortcutAction::PhotometricTab},
     Shortcut{'r', "R", "record / stop recording a session", ShortcutAction::ToggleRecording},
     Shortcut{'e', "E", "Record tab: sessions, replay, export", ShortcutAction::RecordTab},
+    Shortcut{'k', "K", "Camera tab: exposure, gain, frame rate", ShortcutAction::CameraTab},
     Shortcut{'h', "H or ?", "show or hide this list", ShortcutAction::Help},
 };
 

@@ -21,6 +21,7 @@ enum class ShortcutAction {
   PhotometricTab,  // P
   ToggleRecording, // R: record / stop recording
   RecordTab,       // E: Record tab (sessions, export)
+  CameraTab,       // K: Camera tab (exposure, gain, rate of a live camera)
   Help,            // H or ?: this list
 };
 

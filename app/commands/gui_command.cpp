@@ -2,6 +2,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <utility>
@@ -16,10 +17,13 @@
 #include "frontends/frontend_error.hpp"
 #include "frontends/headless_frontend.hpp"
 #include "frontends/windowed_frontend.hpp"
+#include "nirslam/capture/device_info.hpp"
+#include "nirslam/capture/emulated_uvc.hpp"
+#include "nirslam/capture/v4l2_io.hpp"
 #include "nirslam/config/ui_preferences.hpp"
 #include "nirslam/session/session_recovery.hpp"
-#include "ui/panels/recording_panel.hpp"
 #include "nirslam/worker/worker.hpp"
+#include "ui/panels/recording_panel.hpp"
 
 namespace nirslam::app {
 namespace {
@@ -74,13 +78,37 @@ bool has_display() {
   return set("DISPLAY") || set("WAYLAND_DISPLAY");
 }
 
+// The controls of the camera the worker streams from: set on the worker thread when a factory
+// opens a source, read by the UI's camera panel every frame.
+class CameraSlot {
+public:
+  void set(std::shared_ptr<CameraControls> controls) {
+    const std::lock_guard lock(mutex_);
+    controls_ = std::move(controls);
+  }
+  std::shared_ptr<CameraControls> get() const {
+    const std::lock_guard lock(mutex_);
+    return controls_;
+  }
+
+private:
+  mutable std::mutex mutex_;
+  std::shared_ptr<CameraControls> controls_;
+};
+
+SourceFactory factory_for(const std::string& source, const std::shared_ptr<CameraSlot>& cameras) {
+  return source_factory_from_argument(source, [cameras](std::shared_ptr<CameraControls> controls) {
+    cameras->set(std::move(controls));
+  });
+}
+
 // The Session tab's Open: the same SOURCE strings as the command line, checked now (a refusal is
 // shown in the panel), opened on the worker thread (a failure there shows as a notification).
-ui::SessionActions session_actions(Worker& worker) {
+ui::SessionActions session_actions(Worker& worker, const std::shared_ptr<CameraSlot>& cameras) {
   ui::SessionActions actions;
-  actions.open_source = [&worker](const std::string& source) -> std::string {
+  actions.open_source = [&worker, cameras](const std::string& source) -> std::string {
     try {
-      SourceFactory factory = source_factory_from_argument(source);
+      SourceFactory factory = factory_for(source, cameras);
       worker.post(command::SetSource{std::move(factory)});
       worker.post(command::Start{});
       return {};
@@ -88,6 +116,19 @@ ui::SessionActions session_actions(Worker& worker) {
       return e.what();
     }
   };
+  actions.list_cameras = [](bool emulated) {
+    std::shared_ptr<V4l2Io> io;
+    if (emulated) {
+      auto emulator = std::make_shared<EmulatedUvc>();
+      emulator->add_camera(emulated_mono_nir_camera("/dev/video0"));
+      emulator->add_camera(emulated_stereo_nir_camera("/dev/video2"));
+      io = emulator;
+    } else {
+      io = make_system_v4l2_io();
+    }
+    return enumerate_devices(*io);
+  };
+  actions.camera_controls = [cameras] { return cameras->get(); };
   return actions;
 }
 
@@ -106,10 +147,11 @@ void print_ui_benchmark(const HeadlessResult& result, const HeadlessOptions& opt
               static_cast<long long>(result.frames_processed));
 }
 
-int headless(Worker& worker, const GuiOptions& options, const std::filesystem::path& screenshot) {
+int headless(Worker& worker, const GuiOptions& options, const std::filesystem::path& screenshot,
+             const std::shared_ptr<CameraSlot>& cameras) {
   HeadlessOptions headless_options;
   headless_options.benchmark = options.ui_benchmark;
-  headless_options.session_actions = session_actions(worker);
+  headless_options.session_actions = session_actions(worker, cameras);
   headless_options.current_source = options.source;
   headless_options.frames = options.frames;
   headless_options.screenshot = screenshot;
@@ -155,17 +197,18 @@ int run_gui(GuiOptions options) {
       startup_warnings.push_back(fmt::format("Recovered an unfinished session: {}", report.summary));
   }
 
+  const auto cameras = std::make_shared<CameraSlot>();
   SourceFactory factory;
   if (use_settings && !options.source_given && !settings.preferences.last_source.empty()) {
     try {
-      factory = source_factory_from_argument(settings.preferences.last_source);
+      factory = factory_for(settings.preferences.last_source, cameras);
       options.source = settings.preferences.last_source;
     } catch (const std::exception& e) {
       startup_warnings.push_back(fmt::format("The last source cannot be opened again ({}); showing {} instead.",
                                              e.what(), kDefaultSource));
     }
   }
-  if (!factory) factory = source_factory_from_argument(options.source);
+  if (!factory) factory = factory_for(options.source, cameras);
   const bool built_in = is_built_in_sequence(options.source);
   WorkerOptions worker_options = app_config().worker;
   // A window shows the sequence at its own pace; headless (and --fast) goes as fast as it can.
@@ -177,11 +220,11 @@ int run_gui(GuiOptions options) {
   worker.post(command::SetSource{factory});
 
   if (options.headless) {
-    return headless(worker, options, options.screenshot.empty() ? "nirslam-gui.png" : options.screenshot);
+    return headless(worker, options, options.screenshot.empty() ? "nirslam-gui.png" : options.screenshot, cameras);
   }
   WindowedOptions window_options;
   window_options.title = fmt::format("nirslam — {}", options.source);
-  window_options.session_actions = session_actions(worker);
+  window_options.session_actions = session_actions(worker, cameras);
   window_options.current_source = options.source;
   window_options.startup_warnings = std::move(startup_warnings);
   UiPreferences& preferences = settings.preferences;

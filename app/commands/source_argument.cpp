@@ -3,8 +3,10 @@
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "commands/app_config.hpp"
+#include "nirslam/capture/v4l2_source.hpp"
 #include "nirslam/common/error.hpp"
 #include "nirslam/session/session_format.hpp"
 #include "nirslam/session/session_source.hpp"
@@ -55,6 +57,12 @@ SourceFactory source_factory_from_argument(const std::string& argument) {
     validate(options);
     return [options] { return make_simulated_source(options); };
   }
+  if (is_v4l2_source_string(argument)) {
+    // Parsed now, so a malformed key or value is reported before any window opens; the device is
+    // opened on the worker thread.
+    const V4l2SourceSpec spec = parse_v4l2_source_spec(argument);
+    return [spec]() -> std::unique_ptr<Source> { return open_v4l2_source(spec); };
+  }
   // session:FOLDER names a recorded session explicitly; a folder holding session.json is one too.
   const bool explicit_session = argument.rfind("session:", 0) == 0;
   const std::filesystem::path path(explicit_session ? argument.substr(8) : argument);
@@ -65,6 +73,17 @@ SourceFactory source_factory_from_argument(const std::string& argument) {
     return [path] { return open_session_source(path); };
   }
   return [path] { return open_source(path); };
+}
+
+SourceFactory source_factory_from_argument(const std::string& argument, CameraControlsSink on_open) {
+  SourceFactory make = source_factory_from_argument(argument);
+  if (!on_open) return make;
+  return [make = std::move(make), on_open = std::move(on_open)]() -> std::unique_ptr<Source> {
+    std::unique_ptr<Source> source = make();
+    const auto* camera = dynamic_cast<const V4l2Source*>(source.get());
+    on_open(camera != nullptr ? camera->controls() : nullptr);
+    return source;
+  };
 }
 
 }  // namespace nirslam::app

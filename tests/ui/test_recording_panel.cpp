@@ -92,9 +92,10 @@ protected:
   std::vector<std::string> opened_;
   CommandSink sink_ = [this](Command c) { posted_.push_back(std::move(c)); };
   SessionActions actions_{[this](const std::string& source) {
-    opened_.push_back(source);
-    return std::string();
-  }};
+                             opened_.push_back(source);
+                             return std::string();
+                           },
+                           {}, {}};
 };
 
 TEST_F(RecordingPanelTest, RecordPostsStartIntoTheSessionsFolderAndStopEndsIt) {

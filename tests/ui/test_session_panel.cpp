@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "nirslam/capture/device_info.hpp"
+#include "nirslam/capture/emulated_uvc.hpp"
 #include "ui/application.hpp"
 #include "ui/gl/shader.hpp"
 #include "ui/panels/notification_area.hpp"
@@ -62,9 +64,17 @@ protected:
   std::vector<Command> posted_;
   CommandSink sink_ = [this](Command c) { posted_.push_back(std::move(c)); };
   SessionActions actions_{[this](const std::string& source) {
-    opened_.push_back(source);
-    return refusal_;
-  }};
+                             opened_.push_back(source);
+                             return refusal_;
+                           },
+                           // The emulated driver's cameras stand in for /dev/video* (no device here).
+                           [](bool) {
+                             EmulatedUvc emulator;
+                             emulator.add_camera(emulated_mono_nir_camera("/dev/video0"));
+                             emulator.add_camera(emulated_stereo_nir_camera("/dev/video2"));
+                             return enumerate_devices(emulator);
+                           },
+                           {}};
 };
 
 TEST_F(SessionPanelTest, OpenHandsTheSimulatorChoiceToTheApp) {
@@ -124,6 +134,21 @@ TEST_F(SessionPanelTest, RecentSourceReopensWithOneClick) {
   ASSERT_EQ(opened_.size(), 1u);
   EXPECT_EQ(opened_[0], "/data/tunnel");
   EXPECT_EQ(panel_.recent_sources.front(), "/data/tunnel");
+}
+
+TEST_F(SessionPanelTest, CameraPickerOpensTheChosenDevice) {
+  Snapshot snapshot;
+  panel_.select("v4l2-emulated:/dev/video0");
+  EXPECT_EQ(panel_.kind(), SessionPanel::SourceKind::Camera);
+  draw(snapshot);
+  draw(snapshot);
+  ASSERT_FALSE(panel_.open_button_rect().empty()) << "the device list has an Open button";
+  click(panel_.open_button_rect(), snapshot);
+  ASSERT_EQ(opened_.size(), 1u);
+  EXPECT_EQ(opened_[0].rfind("v4l2-emulated:/dev/video0", 0), 0u) << opened_[0];
+  EXPECT_NE(opened_[0].find("format="), std::string::npos) << opened_[0];
+  const cv::Mat rgba = shot("SessionCameraPicker");
+  EXPECT_GT(testing::grey_stddev(rgba, ScreenRect{ImVec2(0, 0), ImVec2(500, 300)}), 8.0);
 }
 
 TEST_F(SessionPanelTest, SessionSourceStringsRoundTrip) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include <fmt/format.h>
 #include <imgui.h>
@@ -86,16 +87,25 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
   ImGui::AlignTextToFramePadding();
   ImGui::TextColored(to_vec4(colours::text_dim), "Mode");
   ImGui::SameLine();
-  static constexpr PipelineMode kModes[] = {PipelineMode::Quality, PipelineMode::Odometry, PipelineMode::Calibrated};
-  static constexpr const char* kModeLabels[] = {"quality only", "odometry", "calibrated odometry"};
-  int current = 2;
-  for (int i = 0; i < 3; ++i)
-    if (snapshot.pipeline_mode == to_string(kModes[i])) current = i;
+  const auto label = [](PipelineMode mode) -> const char* {
+    switch (mode) {
+      case PipelineMode::Quality: return "quality only";
+      case PipelineMode::Odometry: return "odometry";
+      case PipelineMode::Calibrated: return "calibrated odometry";
+      case PipelineMode::Illuminated: return "calibrated + lamp";
+      case PipelineMode::OdometryIlluminated: return "odometry + lamp";
+    }
+    return "?";
+  };
+  const std::vector<PipelineMode> modes = pipeline_modes();
+  PipelineMode current = PipelineMode::Calibrated;
+  for (const PipelineMode mode : modes)
+    if (snapshot.pipeline_mode == to_string(mode)) current = mode;
   ImGui::SetNextItemWidth(ImGui::CalcTextSize("calibrated odometry").x + ImGui::GetFrameHeight() + 12.0f);
   if (!can_post) ImGui::BeginDisabled();
-  if (ImGui::BeginCombo("##mode", kModeLabels[current])) {
-    for (int i = 0; i < 3; ++i)
-      if (ImGui::Selectable(kModeLabels[i], i == current) && i != current) post(command::SetPipelineMode{kModes[i]});
+  if (ImGui::BeginCombo("##mode", label(current))) {
+    for (const PipelineMode mode : modes)
+      if (ImGui::Selectable(label(mode), mode == current) && mode != current) post(command::SetPipelineMode{mode});
     ImGui::EndCombo();
   }
   if (!can_post) ImGui::EndDisabled();
@@ -104,6 +114,8 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
                       "quality only: entropy, clipping, features\n"
                       "odometry: + direct sparse odometry on the raw frames (plain DSO)\n"
                       "calibrated odometry: + online photometric calibration; the odometry sees G(I)/V\n"
+                      "calibrated + lamp: + the co-located lamp's distance and power factor in the odometry\n"
+                      "odometry + lamp: plain odometry with the lamp's factor, without calibration\n"
                       "Switching restarts the calibration and the odometry.");
 
   vertical_separator();

@@ -52,6 +52,11 @@ void SessionPanel::select(const std::string& source) {
     }
     return;
   }
+  if (source.rfind("v4l2:", 0) == 0 || source.rfind("v4l2-emulated:", 0) == 0) {
+    kind_ = SourceKind::Camera;
+    emulated_cameras_ = source.rfind("v4l2-emulated:", 0) == 0;
+    return;
+  }
   if (source.rfind("session:", 0) == 0) {
     kind_ = SourceKind::Recording;
     copy_into(session_path_, source.substr(8));
@@ -68,13 +73,16 @@ std::string SessionPanel::chosen_source() const {
     case SourceKind::Dataset: return std::string(dataset_path_.data());
     case SourceKind::Recording:
       return session_path_[0] == '\0' ? std::string() : "session:" + std::string(session_path_.data());
+    case SourceKind::Camera: return device_list_.selected_source(devices_, emulated_cameras_).value_or("");
   }
   return {};
 }
 
 void SessionPanel::open(const std::string& source, const SessionActions& actions) {
   if (source.empty()) {
-    error_ = kind_ == SourceKind::Dataset ? "Enter the dataset folder first." : "Enter the session folder first.";
+    error_ = kind_ == SourceKind::Dataset   ? "Enter the dataset folder first."
+             : kind_ == SourceKind::Camera ? "Choose a camera first."
+                                           : "Enter the session folder first.";
     return;
   }
   if (!actions.open_source) {
@@ -113,6 +121,7 @@ void SessionPanel::draw(const Snapshot& snapshot, const CommandSink& post, const
 }
 
 void SessionPanel::draw_picker(const SessionActions& actions) {
+  error_rect_ = {};
   section_title("Source");
   const auto kind_button = [this](const char* label, SourceKind kind) {
     if (ImGui::RadioButton(label, kind_ == kind)) {
@@ -127,6 +136,13 @@ void SessionPanel::draw_picker(const SessionActions& actions) {
   ImGui::SameLine();
   kind_button("Session", SourceKind::Recording);
   if (ImGui::IsItemHovered()) ImGui::SetTooltip("A session recorded with nirslam (replayed with its exposures and powers)");
+  ImGui::SameLine();
+  kind_button("Camera", SourceKind::Camera);
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("A live V4L2 camera (UVC NIR cameras, mono or side-by-side stereo)");
+  if (kind_ == SourceKind::Camera) {
+    draw_cameras(actions);
+    return;
+  }
 
   bool submit = false;
   const float label_width = ImGui::CalcTextSize("Lamp power").x + 12.0f;
@@ -160,6 +176,7 @@ void SessionPanel::draw_picker(const SessionActions& actions) {
       submit = ImGui::InputTextWithHint("##session", "/path/to/session folder", session_path_.data(),
                                         session_path_.size(), ImGuiInputTextFlags_EnterReturnsTrue);
       break;
+    case SourceKind::Camera: break;  // drawn by draw_cameras()
   }
   ImGui::Spacing();
   const bool enabled = static_cast<bool>(actions.open_source);
@@ -180,6 +197,32 @@ void SessionPanel::draw_picker(const SessionActions& actions) {
     ImGui::PopStyleColor();
     error_rect_ = last_item_rect();
   }
+}
+
+void SessionPanel::draw_cameras(const SessionActions& actions) {
+  if (!actions.list_cameras) {
+    ImGui::TextColored(to_vec4(colours::text_dim), "Cameras are not available here.");
+    return;
+  }
+  bool refresh = !devices_listed_;
+  if (ImGui::Checkbox("Emulated cameras", &emulated_cameras_)) refresh = true;
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("The emulated UVC driver's cameras, for trying the camera path without one");
+  ImGui::SameLine();
+  if (ImGui::SmallButton("Refresh")) refresh = true;
+  if (refresh) {
+    devices_ = actions.list_cameras(emulated_cameras_);
+    devices_listed_ = true;
+  }
+  ImGui::BeginChild("##devices", ImVec2(0.0f, 0.0f), false);
+  if (const std::optional<std::string> source = device_list_.draw(devices_, emulated_cameras_)) open(*source, actions);
+  open_button_ = device_list_.open_button_rect();
+  if (!error_.empty()) {
+    ImGui::PushStyleColor(ImGuiCol_Text, to_vec4(colours::state_failed));
+    ImGui::TextWrapped("%s", error_.c_str());
+    ImGui::PopStyleColor();
+    error_rect_ = last_item_rect();
+  }
+  ImGui::EndChild();
 }
 
 void SessionPanel::draw_recent(const SessionActions& actions) {

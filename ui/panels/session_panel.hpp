@@ -5,8 +5,11 @@
 #include <string>
 #include <vector>
 
+#include "nirslam/capture/camera_controls.hpp"
+#include "nirslam/capture/device_info.hpp"
 #include "nirslam/worker/snapshot.hpp"
 #include "ui/command_sink.hpp"
+#include "ui/panels/device_list.hpp"
 #include "ui/widgets.hpp"
 
 namespace nirslam::ui {
@@ -18,17 +21,23 @@ struct SessionActions {
   // Accepts a source ("sim:tunnel@50W", a dataset or session folder, "v4l2:/dev/video0"), hands it
   // to the worker and returns an empty string; or returns why it was refused (no such folder, ...).
   std::function<std::string(const std::string& source)> open_source;
+  // The V4L2 cameras (the emulated driver's with `emulated`); called when the operator asks, since
+  // probing devices takes a moment. Without it the camera picker says cameras are unavailable.
+  std::function<std::vector<DeviceInfo>(bool emulated)> list_cameras;
+  // The controls of the camera the worker streams from now, nullptr when the source is not a camera.
+  std::function<std::shared_ptr<CameraControls>()> camera_controls;
 };
 
 // Session: where the frames come from and how they are played.
 //   - source picker: the simulator (scene and lamp power), a dataset folder (TUM monoVO, EuRoC,
 //     image folder), a recorded session; Open hands it to the worker (Ctrl-free: Enter in the path
 //     field opens too); a refusal is shown under the button, in red, until the next attempt,
+//   - a V4L2 camera: the devices with their formats, sizes and rates (or the emulated driver's),
 //   - recent sources, newest first, one click to reopen,
 //   - playback: recorded speed or as fast as possible, the worker state and the position.
 class SessionPanel {
 public:
-  enum class SourceKind { Simulator, Dataset, Recording };
+  enum class SourceKind { Simulator, Dataset, Recording, Camera };
 
   void draw(const Snapshot& snapshot, const CommandSink& post, const SessionActions& actions);
 
@@ -58,6 +67,7 @@ public:
 
 private:
   void draw_picker(const SessionActions& actions);
+  void draw_cameras(const SessionActions& actions);
   void draw_recent(const SessionActions& actions);
   void draw_playback(const Snapshot& snapshot, const CommandSink& post);
   void open(const std::string& source, const SessionActions& actions);
@@ -69,6 +79,10 @@ private:
   std::array<char, 1024> session_path_{};
   std::string error_;
   std::string last_opened_;
+  DeviceList device_list_;
+  std::vector<DeviceInfo> devices_;
+  bool emulated_cameras_ = false;
+  bool devices_listed_ = false;
   bool recorded_speed_ = true;
   ScreenRect open_button_;
   ScreenRect error_rect_;

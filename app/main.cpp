@@ -33,6 +33,9 @@ int main(int argc, char** argv) {
   nirslam::app::add_calibrate_command(cli, action);
   nirslam::app::add_bench_command(cli, action);
   nirslam::app::add_devices_command(cli, action);
+  nirslam::app::add_record_command(cli, action);
+  nirslam::app::add_export_command(cli, action);
+  nirslam::app::add_recover_command(cli, action);
 
   // Set after the subcommands: CLI11 copies the parent's footer into subcommands made after it.
   cli.footer(

@@ -20,6 +20,9 @@ void add_calibrate_sweep_command(CLI::App& parent, CommandAction& action);
 void add_calibrate_command(CLI::App& parent, CommandAction& action);
 void add_bench_command(CLI::App& parent, CommandAction& action);
 void add_devices_command(CLI::App& parent, CommandAction& action);
+void add_record_command(CLI::App& parent, CommandAction& action);
+void add_export_command(CLI::App& parent, CommandAction& action);
+void add_recover_command(CLI::App& parent, CommandAction& action);
 
 // What `nirslam` with no subcommand does: the GUI on the simulated tunnel, or the headless
 // rendering of it when there is no display.

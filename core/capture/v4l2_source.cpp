@@ -151,6 +151,7 @@ public:
 
   std::optional<Frame> next() override {
     std::unique_lock lock(mutex_);
+    const auto stalled_at = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(spec_.stall_timeout_s));
     for (;;) {
       if (!queue_.empty()) {
         QueuedFrame q = std::move(queue_.front());
@@ -179,7 +180,13 @@ public:
         frame_ready_.wait_until(lock, give_up);
         continue;
       }
-      frame_ready_.wait_for(lock, std::chrono::milliseconds(200));
+      if (Clock::now() >= stalled_at) {
+        std::ostringstream message;
+        message << "no frame for " << spec_.stall_timeout_s << " s: the camera stalled";
+        hub_->update([&](CameraState& s) { s.error = message.str(); });
+        throw InputError(spec_.device, "stream", message.str());
+      }
+      frame_ready_.wait_until(lock, std::min(stalled_at, Clock::now() + std::chrono::milliseconds(200)));
     }
   }
 

@@ -109,6 +109,8 @@ V4l2SourceSpec parse_v4l2_source_spec(std::string_view text) {
         spec.locked = on_off(value, source, key);
       } else if (key == "reconnect_s") {
         spec.reconnect_wait_s = number(value, source, key, 0.0, 3600.0);
+      } else if (key == "stall_s") {
+        spec.stall_timeout_s = number(value, source, key, 0.01, 3600.0);
       } else if (key == "gain_unity") {
         spec.gain_unity = number(value, source, key, 1e-6, 1e6);
       } else if (key == "frames" && spec.emulated) {
@@ -117,7 +119,7 @@ V4l2SourceSpec parse_v4l2_source_spec(std::string_view text) {
         spec.emulated_paced = on_off(value, source, key);
       } else {
         throw InputError(source, key, "unknown key (format, size, fps, buffers, queue, stereo, exposure_ms, gain, "
-                                      "auto_exposure, lock, reconnect_s, gain_unity" +
+                                      "auto_exposure, lock, reconnect_s, stall_s, gain_unity" +
                                           std::string(spec.emulated ? ", frames, paced)" : ")"));
       }
     }
@@ -144,6 +146,7 @@ std::string V4l2SourceSpec::to_string() const {
   if (auto_exposure) params.push_back(std::string("auto_exposure=") + (*auto_exposure ? "on" : "off"));
   if (locked) params.push_back("lock=on");
   if (reconnect_wait_s != 3.0) params.push_back("reconnect_s=" + format_number(reconnect_wait_s));
+  if (stall_timeout_s != 5.0) params.push_back("stall_s=" + format_number(stall_timeout_s));
   if (gain_unity > 0.0) params.push_back("gain_unity=" + format_number(gain_unity));
   if (emulated && emulated_frames > 0) params.push_back("frames=" + std::to_string(emulated_frames));
   if (emulated && !emulated_paced) params.push_back("paced=off");

@@ -14,7 +14,7 @@ namespace {
 TEST(V4l2SourceSpec, ParsesEveryKey) {
   const V4l2SourceSpec s = parse_v4l2_source_spec(
       "v4l2:/dev/video4?format=Y16&size=640x480&fps=30&buffers=6&queue=3&stereo=sbs&exposure_ms=8.5&gain=24&lock=on"
-      "&reconnect_s=1.5&gain_unity=12");
+      "&reconnect_s=1.5&stall_s=2&gain_unity=12");
   EXPECT_FALSE(s.emulated);
   EXPECT_EQ(s.device, "/dev/video4");
   EXPECT_EQ(s.format, PixelFormat::Y16);
@@ -28,6 +28,7 @@ TEST(V4l2SourceSpec, ParsesEveryKey) {
   EXPECT_DOUBLE_EQ(*s.gain, 24.0);
   EXPECT_TRUE(s.locked);
   EXPECT_DOUBLE_EQ(s.reconnect_wait_s, 1.5);
+  EXPECT_DOUBLE_EQ(s.stall_timeout_s, 2.0);
   EXPECT_DOUBLE_EQ(s.gain_unity, 12.0);
   EXPECT_EQ(parse_v4l2_source_spec(s.to_string()).to_string(), s.to_string());
 }

@@ -259,6 +259,23 @@ TEST(V4l2Streaming, ReconnectsWhenTheDeviceComesBackInTime) {
   EXPECT_TRUE(contains(state.message, "reconnected")) << state.message;
 }
 
+TEST(V4l2Streaming, AStalledCameraIsAnErrorNotAHang) {
+  auto emulator = emulator_with(small_camera());
+  emulator->limit_frames("/dev/video0", 1);  // one frame, then the device sends nothing
+  V4l2SourceSpec spec = spec_for(PixelFormat::Grey);
+  spec.stall_timeout_s = 0.2;
+  const auto source = open_v4l2_source(spec, emulator);
+  ASSERT_TRUE(source->next().has_value());
+  try {
+    source->next();
+    FAIL() << "expected an error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), "/dev/video0");
+    EXPECT_TRUE(contains(e.what(), "no frame for 0.2 s")) << e.what();
+  }
+  EXPECT_TRUE(contains(source->controls()->state().error, "stalled"));
+}
+
 TEST(V4l2Streaming, BusyDeviceAndUnsupportedFormatAreClearErrors) {
   auto emulator = emulator_with(small_camera());
   const auto first = open_v4l2_source(spec_for(PixelFormat::Grey), emulator);

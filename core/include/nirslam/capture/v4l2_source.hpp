@@ -31,6 +31,7 @@ struct V4l2SourceSpec {
   std::optional<bool> auto_exposure;
   bool locked = false;                // hold exposure and gain from the start
   double reconnect_wait_s = 3.0;      // after an unplug, how long next() waits for the device to return
+  double stall_timeout_s = 5.0;       // a present device that sends no frame this long fails the stream
   double gain_unity = 0.0;            // device gain that is 1x for Frame::gain; 0: the control's default
   int emulated_frames = 0;            // emulated: unplug after this many frames (0: never)
   bool emulated_paced = true;         // emulated: frames at the device rate in real time
@@ -43,7 +44,7 @@ bool is_v4l2_source_string(std::string_view text);
 
 // Parses a source string. Keys: format (GREY|Y10|Y12|Y16|YUYV|MJPG), size (WxH), fps, buffers,
 // queue, stereo (sbs|none), exposure_ms, gain, auto_exposure (on|off), lock (on|off),
-// reconnect_s, gain_unity, and for the emulator frames and paced (on|off). Throws InputError
+// reconnect_s, stall_s, gain_unity, and for the emulator frames and paced (on|off). Throws InputError
 // naming the string and the key for an unknown key or a malformed value.
 V4l2SourceSpec parse_v4l2_source_spec(std::string_view text);
 
@@ -52,7 +53,8 @@ V4l2SourceSpec parse_v4l2_source_spec(std::string_view text);
 // on the driver), with the exposure and gain in effect attached to every frame. An unplug ends the
 // stream cleanly: the frames already captured are delivered, then next() waits up to
 // reconnect_wait_s for the node to come back and streams on, or returns std::nullopt (end) with
-// the reason in controls()->state(); rewind() reopens it later. Opening throws InputError naming
+// the reason in controls()->state(); rewind() reopens it later. A device that stays present but
+// sends nothing for stall_timeout_s makes next() throw, so the worker never hangs on a camera. Opening throws InputError naming
 // the device and the field (busy, unsupported format or size, control out of range).
 class V4l2Source : public Source {
 public:

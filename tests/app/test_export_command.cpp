@@ -1,6 +1,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <string>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -14,10 +15,12 @@ namespace {
 namespace fs = std::filesystem;
 
 // One recorded simulated tunnel, with the calibrated pipeline (trajectory, calibration, ground
-// truth), shared by the tests of this file.
+// truth), shared by the tests of this file when they run in one process. ctest runs each test in
+// its own process, in parallel: each records into its own folder.
 const fs::path& recorded_tunnel() {
   static const fs::path session = [] {
-    const fs::path s = fresh_dir("export_tunnel") / "session";
+    const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    const fs::path s = fresh_dir("export_tunnel_" + test) / "session";
     const CommandResult r =
         run_command(nirslam("record sim:tunnel --frames 60 --mode calibrated --out '" + s.string() + "'"));
     EXPECT_EQ(r.exit_code, 0) << r.output;

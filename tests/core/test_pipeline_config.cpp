@@ -78,7 +78,9 @@ TEST(PipelineConfig, ErrorsNameFileLineAndField) {
   EXPECT_NE(error_of(section).find(":1: field 'mapping': unknown section"), std::string::npos);
 
   const fs::path mode = write_yaml("mode", "pipeline:\n  mode: dso\n");
-  EXPECT_NE(error_of(mode).find(":2: field 'pipeline.mode': expected 'quality', 'odometry' or 'calibrated'"), std::string::npos)
+  EXPECT_NE(error_of(mode).find(":2: field 'pipeline.mode': expected 'quality', 'odometry', 'calibrated', "
+                                "'illuminated' or 'odometry-illuminated'"),
+            std::string::npos)
       << error_of(mode);
 
   const fs::path flag = write_yaml("flag", "calibration:\n  background_thread: maybe\n");

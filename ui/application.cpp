@@ -5,6 +5,8 @@
 #include <string>
 #include <utility>
 
+#include <fmt/format.h>
+
 #include "ui/theme.hpp"
 
 namespace nirslam::ui {
@@ -78,6 +80,7 @@ Application::Layout Application::compute_layout(ImVec2 display) const {
 
 void Application::draw(const Snapshot& snapshot) {
   notifications_.observe(snapshot);
+  watch_camera();
   handle_shortcuts(snapshot);
   layout_ = compute_layout(ImGui::GetIO().DisplaySize);
 
@@ -167,6 +170,31 @@ void Application::draw_strip(const Snapshot& snapshot) {
     ImGui::EndTabBar();
   }
   ImGui::End();
+}
+
+// A camera that goes away (or fails) says so in the window whatever tab is open: the stream ends
+// cleanly and the worker only sees the end of its source.
+void Application::watch_camera() {
+  const std::shared_ptr<CameraControls> controls =
+      session_actions_.camera_controls ? session_actions_.camera_controls() : nullptr;
+  if (!controls) {
+    camera_connection_.reset();
+    return;
+  }
+  const CameraState state = controls->state();
+  if (camera_connection_ != state.connection) {
+    const std::string what = state.device.empty() ? std::string("the camera") : state.device;
+    if (state.connection == CameraConnection::Unplugged)
+      notifications_.push(NotificationArea::Severity::Warning,
+                          fmt::format("{} disappeared: {} frames captured are kept. {}", what, state.frames_captured,
+                                      state.message));
+    else if (state.connection == CameraConnection::Failed)
+      notifications_.push(NotificationArea::Severity::Error,
+                          fmt::format("{}: {}", what, state.error.empty() ? state.message : state.error));
+    else if (state.connection == CameraConnection::Streaming && camera_connection_ == CameraConnection::Reconnecting)
+      notifications_.push(NotificationArea::Severity::Notice, what + " is back and streaming again.");
+    camera_connection_ = state.connection;
+  }
 }
 
 void Application::draw_camera_tab() {

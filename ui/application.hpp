@@ -99,6 +99,7 @@ private:
   void draw_strip(const Snapshot& snapshot);
   void run_shortcut(ShortcutAction action, const Snapshot& snapshot);
   void draw_camera_tab();
+  void watch_camera();
 
   CommandSink post_;
   ControlBar controls_;
@@ -111,6 +112,7 @@ private:
   SessionPanel session_;
   RecordingPanel recording_;
   CameraPanel camera_;
+  std::optional<CameraConnection> camera_connection_;  // last seen, to notify on unplug / failure
   SessionActions session_actions_;
   NotificationArea notifications_;
   ShortcutHelp help_;

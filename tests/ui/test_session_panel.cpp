@@ -226,6 +226,43 @@ TEST_F(WindowExtrasTest, ShortcutsSwitchViewsAndHelpListsThemAll) {
   EXPECT_FALSE(app.shortcut_help().visible);
 }
 
+// Camera controls whose state the test sets: stands in for a V4L2 source's.
+class ScriptedCamera final : public CameraControls {
+public:
+  CameraState current;
+  CameraState state() const override { return current; }
+  void set_exposure_ms(double) override {}
+  void set_gain(double) override {}
+  void set_auto_exposure(bool) override {}
+  void set_frame_rate(double) override {}
+  void set_locked(bool) override {}
+};
+
+TEST_F(WindowExtrasTest, CameraUnplugIsShownInTheWindowAndTheCameraTabDrawsItsControls) {
+  OffscreenUi offscreen(1280, 800);
+  Application app(gl::find_shader_dir(), {});
+  auto camera = std::make_shared<ScriptedCamera>();
+  camera->current.device = "/dev/video0";
+  camera->current.connection = CameraConnection::Streaming;
+  camera->current.frames_captured = 480;
+  SessionActions actions;
+  actions.camera_controls = [camera] { return camera; };
+  app.set_session_actions(actions);
+  app.select_tab(Application::StripTab::Camera);
+  Snapshot snapshot;
+  for (int i = 0; i < 2; ++i) offscreen.frame([&] { app.draw(snapshot); });
+  EXPECT_EQ(app.current_tab(), Application::StripTab::Camera);
+  EXPECT_EQ(app.notifications().size(), 0u);
+  EXPECT_FALSE(app.camera().banner_rect().empty()) << "the camera panel is drawn in its tab";
+  camera->current.connection = CameraConnection::Unplugged;
+  camera->current.message = "ENODEV while dequeuing";
+  for (int i = 0; i < 2; ++i) offscreen.frame([&] { app.draw(snapshot); });
+  ASSERT_EQ(app.notifications().size(), 1u);
+  const cv::Mat rgba = offscreen.read_rgba();
+  testing::save_if_requested(rgba, "CameraUnplugged");
+  EXPECT_GT(testing::count_colour(rgba, app.notifications().drawn_rect(), colours::banner_dark, 40), 20);
+}
+
 TEST(Shortcuts, EveryKeyIsUniqueAndCaseInsensitive) {
   for (const Shortcut& a : shortcuts()) {
     EXPECT_EQ(shortcut_for(static_cast<unsigned char>(a.key)), &a);

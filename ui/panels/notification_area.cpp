@@ -62,8 +62,8 @@ void NotificationArea::draw(const ScreenRect& area) {
 
   const float margin = 10.0f;
   const float width = std::min(460.0f, area.width() - 2.0f * margin);
-  // Below the panels' two tool rows, so their buttons stay reachable.
-  float y = area.min.y + margin + 2.0f * ImGui::GetFrameHeightWithSpacing();
+  // Below the title bar and the panels' two tool rows, so their buttons stay reachable.
+  float y = area.min.y + margin + 3.0f * ImGui::GetFrameHeightWithSpacing();
   const ImGuiStyle& style = ImGui::GetStyle();
   std::size_t shown = 0;
   for (auto it = items_.begin(); it != items_.end() && shown < kMaxShown; ++shown) {

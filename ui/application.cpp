@@ -23,6 +23,12 @@ constexpr ImGuiWindowFlags kBarFlags = kTileFlags | ImGuiWindowFlags_NoTitleBar;
 constexpr ImGuiWindowFlags kPlainTile = kTileFlags | ImGuiWindowFlags_NoBackground;
 constexpr ImGuiWindowFlags kPlainBar = kBarFlags | ImGuiWindowFlags_NoBackground;
 
+// The strip's tabs as the settings file names them.
+constexpr std::pair<Application::StripTab, const char*> kTabNames[] = {
+    {Application::StripTab::Illumination, "illumination"}, {Application::StripTab::Photometric, "photometric"},
+    {Application::StripTab::Session, "session"},           {Application::StripTab::Record, "record"},
+    {Application::StripTab::Camera, "camera"}};
+
 bool begin_tile(const char* name, const ScreenRect& rect, ImGuiWindowFlags flags) {
   ImGui::SetNextWindowPos(rect.min);
   ImGui::SetNextWindowSize(rect.size());
@@ -222,16 +228,9 @@ void Application::apply(const UiPreferences& p) {
   if (!p.last_source.empty()) session_.select(p.last_source);
   session_.set_recorded_speed(p.recorded_speed);
   recording_.set_sessions_folder(p.sessions_folder);
-  if (p.strip_tab == "photometric")
-    select_tab(StripTab::Photometric);
-  else if (p.strip_tab == "session")
-    select_tab(StripTab::Session);
-  else if (p.strip_tab == "record")
-    select_tab(StripTab::Record);
-  else if (p.strip_tab == "camera")
-    select_tab(StripTab::Camera);
-  else
-    select_tab(StripTab::Illumination);
+  select_tab(StripTab::Illumination);
+  for (const auto& [tab, name] : kTabNames)
+    if (p.strip_tab == name) select_tab(tab);
   if (post_) {
     if (const auto mode = parse_pipeline_mode(p.pipeline_mode)) post_(command::SetPipelineMode{*mode});
     post_(command::SetPacing{p.recorded_speed ? Pacing::RecordedSpeed : Pacing::AsFastAsPossible});
@@ -250,13 +249,8 @@ void Application::capture(UiPreferences& p) const {
   p.recent_sources = session_.recent_sources;
   p.recorded_speed = session_.recorded_speed();
   p.sessions_folder = recording_.sessions_folder();
-  switch (current_tab_) {
-    case StripTab::Illumination: p.strip_tab = "illumination"; break;
-    case StripTab::Photometric: p.strip_tab = "photometric"; break;
-    case StripTab::Session: p.strip_tab = "session"; break;
-    case StripTab::Record: p.strip_tab = "record"; break;
-    case StripTab::Camera: p.strip_tab = "camera"; break;
-  }
+  for (const auto& [tab, name] : kTabNames)
+    if (tab == current_tab_) p.strip_tab = name;
 }
 
 void Application::handle_shortcuts(const Snapshot& snapshot) {

@@ -249,4 +249,11 @@ PlotResult draw_plot(const char* id, ImVec2 size, const PlotAxes& axes, std::spa
   return result;
 }
 
+ScreenRect last_item_rect() { return {ImGui::GetItemRectMin(), ImGui::GetItemRectMax()}; }
+
+void section_title(const char* text) {
+  ImGui::TextColored(to_vec4(colours::text_dim), "%s", text);
+  ImGui::Separator();
+}
+
 }  // namespace nirslam::ui

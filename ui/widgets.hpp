@@ -1,5 +1,8 @@
 #pragma once
 
+#include <algorithm>
+#include <array>
+#include <cstring>
 #include <span>
 #include <string>
 #include <vector>
@@ -39,6 +42,20 @@ enum class Icon { Play, Pause, Step, Stop, Fit };
 // A button with a drawn icon and a label (no "##" suffixes: the id is separate); disabled buttons are greyed and return false. The
 // tooltip (if any) shows on hover.
 bool icon_button(const char* id, Icon icon, const char* label, bool enabled, const char* tooltip = nullptr);
+
+// The last ImGui item's rectangle (for the screenshot tests' geometry).
+ScreenRect last_item_rect();
+
+// A dim caption over a separator, heading a column of a panel.
+void section_title(const char* text);
+
+// Copies `text` into a fixed ImGui text buffer, cut to fit, always terminated.
+template <std::size_t N>
+void copy_into(std::array<char, N>& buffer, const std::string& text) {
+  const std::size_t n = std::min(text.size(), N - 1);
+  std::memcpy(buffer.data(), text.data(), n);
+  buffer[n] = '\0';
+}
 
 // A small filled rounded badge with text, e.g. the worker state.
 void badge(const char* text, ImU32 colour);

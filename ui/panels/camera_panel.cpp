@@ -13,8 +13,6 @@
 namespace nirslam::ui {
 namespace {
 
-ScreenRect last_item_rect() { return {ImGui::GetItemRectMin(), ImGui::GetItemRectMax()}; }
-
 // The slider's track alone (the item rectangle also holds its label): `width` from CalcItemWidth.
 ScreenRect last_frame_rect(float width) {
   const ImVec2 min = ImGui::GetItemRectMin();

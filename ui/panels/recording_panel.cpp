@@ -19,20 +19,6 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 constexpr auto kScanPeriod = std::chrono::seconds(3);
 
-template <std::size_t N>
-void copy_into(std::array<char, N>& buffer, const std::string& text) {
-  const std::size_t n = std::min(text.size(), N - 1);
-  std::memcpy(buffer.data(), text.data(), n);
-  buffer[n] = '\0';
-}
-
-ScreenRect last_item_rect() { return {ImGui::GetItemRectMin(), ImGui::GetItemRectMax()}; }
-
-void section_title(const char* text) {
-  ImGui::TextColored(to_vec4(colours::text_dim), "%s", text);
-  ImGui::Separator();
-}
-
 ImU32 state_colour(RecordingStatus::State state) {
   switch (state) {
     case RecordingStatus::State::Off: return colours::state_idle;

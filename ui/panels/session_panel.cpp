@@ -20,20 +20,6 @@ constexpr int kSceneCount = 4;
 constexpr float kMinPowerW = 5.0f;
 constexpr float kMaxPowerW = 200.0f;
 
-template <std::size_t N>
-void copy_into(std::array<char, N>& buffer, const std::string& text) {
-  const std::size_t n = std::min(text.size(), N - 1);
-  std::memcpy(buffer.data(), text.data(), n);
-  buffer[n] = '\0';
-}
-
-ScreenRect last_item_rect() { return {ImGui::GetItemRectMin(), ImGui::GetItemRectMax()}; }
-
-void section_title(const char* text) {
-  ImGui::TextColored(to_vec4(colours::text_dim), "%s", text);
-  ImGui::Separator();
-}
-
 }  // namespace
 
 void SessionPanel::select(const std::string& source) {

@@ -108,8 +108,8 @@ warnings=$(zcat /usr/share/man/man1/nirslam.1.gz | groff -man -Tutf8 -ww -z 2>&1
 [ -z "$warnings" ] || fail "man page has groff warnings: $warnings"
 MANWIDTH=80 man -P cat nirslam 2> /dev/null | grep -q "nirslam run" || fail "man page lacks the subcommand sections"
 completions=$(bash -c 'source /usr/share/bash-completion/completions/nirslam &&
-  COMP_LINE="nirslam r"; COMP_POINT=${#COMP_LINE}; _nirslam; echo "${COMPREPLY[*]}"')
-[ "$completions" = "run" ] || fail "completion of 'nirslam r' gave '$completions'"
+  COMP_LINE="nirslam re"; COMP_POINT=${#COMP_LINE}; _nirslam; echo "${COMPREPLY[*]}"')
+[ "$completions" = "record recover" ] || fail "completion of 'nirslam re' gave '$completions' (expected 'record recover')"
 if command -v desktop-file-validate > /dev/null; then desktop-file-validate /usr/share/applications/nirslam.desktop; fi
 
 step "Remove: apt-get remove nirslam"

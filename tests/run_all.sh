@@ -36,5 +36,5 @@ ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 section "ThreadSanitizer: worker tests"
 configure build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DNIRSLAM_SANITIZE=thread -DNIRSLAM_BUILD_UI=OFF
 cmake --build build-tsan -j"$jobs" --target nirslam_worker_tests
-TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 \
+TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$PWD/tests/tsan-suppressions.txt" \
   ctest --test-dir build-tsan --output-on-failure -j"$jobs" -L worker

@@ -91,15 +91,8 @@ int capture_check(const DevicesOptions& options) {
 
 int run_devices(const DevicesOptions& options) {
   try {
-    std::shared_ptr<V4l2Io> io;
-    if (options.emulated) {
-      auto emulator = std::make_shared<EmulatedUvc>();
-      emulator->add_camera(emulated_mono_nir_camera("/dev/video0"));
-      emulator->add_camera(emulated_stereo_nir_camera("/dev/video2"));
-      io = emulator;
-    } else {
-      io = make_system_v4l2_io();
-    }
+    const std::shared_ptr<V4l2Io> io =
+        options.emulated ? std::shared_ptr<V4l2Io>(make_emulated_nir_cameras()) : make_system_v4l2_io();
     if (options.capture_frames > 0) return capture_check(options);
     std::vector<DeviceInfo> devices;
     if (!options.device.empty()) devices.push_back(describe_device(*io, options.device));

@@ -117,15 +117,8 @@ ui::SessionActions session_actions(Worker& worker, const std::shared_ptr<CameraS
     }
   };
   actions.list_cameras = [](bool emulated) {
-    std::shared_ptr<V4l2Io> io;
-    if (emulated) {
-      auto emulator = std::make_shared<EmulatedUvc>();
-      emulator->add_camera(emulated_mono_nir_camera("/dev/video0"));
-      emulator->add_camera(emulated_stereo_nir_camera("/dev/video2"));
-      io = emulator;
-    } else {
-      io = make_system_v4l2_io();
-    }
+    const std::shared_ptr<V4l2Io> io =
+        emulated ? std::shared_ptr<V4l2Io>(make_emulated_nir_cameras()) : make_system_v4l2_io();
     return enumerate_devices(*io);
   };
   actions.camera_controls = [cameras] { return cameras->get(); };

@@ -146,4 +146,14 @@ EmulatedCameraSpec emulated_stereo_nir_camera(const std::string& node) {
   return spec;
 }
 
+std::shared_ptr<EmulatedUvc> make_emulated_nir_cameras(bool paced) {
+  auto emulator = std::make_shared<EmulatedUvc>();
+  EmulatedCameraSpec mono = emulated_mono_nir_camera("/dev/video0");
+  EmulatedCameraSpec stereo = emulated_stereo_nir_camera("/dev/video2");
+  mono.paced = stereo.paced = paced;
+  emulator->add_camera(mono);
+  emulator->add_camera(stereo);
+  return emulator;
+}
+
 }  // namespace nirslam

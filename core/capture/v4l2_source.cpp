@@ -539,13 +539,8 @@ private:
 };
 
 std::shared_ptr<V4l2Io> emulated_io_for(const V4l2SourceSpec& spec) {
-  auto emulator = std::make_shared<EmulatedUvc>();
-  EmulatedCameraSpec mono = emulated_mono_nir_camera("/dev/video0");
-  EmulatedCameraSpec stereo = emulated_stereo_nir_camera("/dev/video2");
-  mono.paced = stereo.paced = spec.emulated_paced;
-  emulator->add_camera(mono);
-  emulator->add_camera(stereo);
-  if (spec.emulated_frames > 0 && (spec.device == mono.node || spec.device == stereo.node))
+  auto emulator = make_emulated_nir_cameras(spec.emulated_paced);
+  if (spec.emulated_frames > 0 && (spec.device == "/dev/video0" || spec.device == "/dev/video2"))
     emulator->unplug_after(spec.device, spec.emulated_frames);
   return emulator;
 }

@@ -123,6 +123,9 @@ private:
 // and Y16 at 1280x480, both views in one frame).
 EmulatedCameraSpec emulated_mono_nir_camera(const std::string& node = "/dev/video0");
 EmulatedCameraSpec emulated_stereo_nir_camera(const std::string& node = "/dev/video2");
+// A driver with both: the mono camera at /dev/video0 and the stereo one at /dev/video2, frames at
+// the device rate in real time (`paced`) or on demand.
+std::shared_ptr<EmulatedUvc> make_emulated_nir_cameras(bool paced = true);
 
 // The default pattern: a textured wall drifting across the view, brightness proportional to
 // exposure x gain, the right view of a stereo frame shifted by a disparity. Any layout.

@@ -13,6 +13,11 @@ PipelineConfig& config_storage() {
   return config;
 }
 
+std::filesystem::path& explicit_file_storage() {
+  static std::filesystem::path file;
+  return file;
+}
+
 }  // namespace
 
 namespace {
@@ -37,6 +42,7 @@ IlluminationConfig load_shipped_illumination_config() {
 }  // namespace
 
 void load_app_config(const std::filesystem::path& explicit_file) {
+  explicit_file_storage() = explicit_file.empty() ? explicit_file : std::filesystem::absolute(explicit_file);
   if (!explicit_file.empty()) {
     config_storage() = load_pipeline_config(explicit_file);  // a file asked for must load
     spdlog::debug("configuration: {}", explicit_file.string());
@@ -53,5 +59,7 @@ void load_app_config(const std::filesystem::path& explicit_file) {
 }
 
 const PipelineConfig& app_config() { return config_storage(); }
+
+const std::filesystem::path& app_config_file() { return explicit_file_storage(); }
 
 }  // namespace nirslam::app

@@ -13,5 +13,8 @@ namespace nirslam::app {
 // (worker.illumination) comes from the shipped config/illumination.yaml, found the same way.
 void load_app_config(const std::filesystem::path& explicit_file);
 const PipelineConfig& app_config();
+// The file `--config` named (absolute), empty when the shipped or built-in one is in use: child
+// processes (bench's runs) are handed the same file.
+const std::filesystem::path& app_config_file();
 
 }  // namespace nirslam::app

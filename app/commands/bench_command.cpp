@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include "commands/app_config.hpp"
 #include "commands/subcommand.hpp"
 #include "nirslam/common/error.hpp"
 #include "nirslam/eval/benchmark_table.hpp"
@@ -241,8 +242,10 @@ int run_bench(const BenchOptions& o) {
       fs::create_directories(run_dir);
       std::printf("[%zu/%zu] %-12s %-11s ", done, total, sequence.name.c_str(), mode.c_str());
       std::fflush(stdout);
-      const ChildResult child =
-          run_child({"run", sequence.folder.string(), "--mode", mode, "--out", run_dir.string()}, run_dir / "run.log");
+      std::vector<std::string> arguments;
+      if (!app_config_file().empty()) arguments = {"--config", app_config_file().string()};  // the runs use bench's own
+      arguments.insert(arguments.end(), {"run", sequence.folder.string(), "--mode", mode, "--out", run_dir.string()});
+      const ChildResult child = run_child(arguments, run_dir / "run.log");
       BenchmarkRun run;
       run.sequence = sequence.name;
       run.mode = mode;

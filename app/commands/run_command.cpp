@@ -72,6 +72,8 @@ void write_summary(const std::filesystem::path& file, const RunOptions& options,
       {"nirslam_version", NIRSLAM_VERSION},
       {"source", {{"argument", options.source}, {"kind", last.source.kind}, {"description", last.source.description}}},
       {"mode", std::string(to_string(mode))},
+      // Which configuration made these figures: the --config file, else the shipped one.
+      {"config_file", app_config_file().empty() ? nlohmann::json(nullptr) : nlohmann::json(app_config_file().string())},
       {"state", to_string(last.state)},
       {"message", last.message},
       {"frames_processed", last.frames_processed},

@@ -92,6 +92,8 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
       undistorter_ = std::make_unique<Undistorter>(*camera_, *pinhole_);
     }
     odometry_ = std::make_unique<DirectOdometry>(*pinhole_, options_.odometry);
+    if (calibration_ && corrects_illuminator(options_.mode) && options_.lamp_distances_to_calibration)
+      light_distances_ = std::make_unique<LightDistanceMap>(*camera_, options_.light_distances);
   }
 }
 
@@ -128,7 +130,15 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
 
   if (calibration_) {
     const auto start = Clock::now();
-    CorrectedFrame corrected = calibration_->process(frame);
+    CorrectedFrame corrected;
+    if (predict_light_distances()) {
+      FrameIllumination illumination;
+      illumination.light_distance_m = [this](const Eigen::Vector2d& pixel) { return light_distances_->light_distance(pixel); };
+      corrected = calibration_->process(frame, illumination);
+      result.light_distance_points = light_distances_->projected_points();
+    } else {
+      corrected = calibration_->process(frame);
+    }
     result.timings.photometric_ms = ms_since(start);
     result.corrected = corrected.irradiance;
     ExposurePoint point;
@@ -163,9 +173,40 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     result.timings.odometry_ms = odometry.timings.total_ms;
     result.timings.mapping_ms = odometry.timings.mapping_ms;
     update_trajectory(frame, odometry);
+    remember_odometry(odometry);
     result.odometry = std::move(odometry);
   }
   return result;
+}
+
+bool SlamPipeline::predict_light_distances() {
+  if (!light_distances_ || !last_pose_ || window_points_.empty()) return false;
+  // Constant velocity: the frame about to come moves as the last one did.
+  SE3 predicted = last_pose_->T_world_cam;
+  if (previous_pose_ && previous_pose_->segment == last_pose_->segment)
+    predicted = last_pose_->T_world_cam * (previous_pose_->T_world_cam.inverse() * last_pose_->T_world_cam);
+  light_distances_->build(window_points_, predicted, options_.odometry.light_offset);
+  return !light_distances_->empty();
+}
+
+void SlamPipeline::remember_odometry(const OdometryResult& result) {
+  if (!light_distances_) return;
+  if (!result.T_world_cam || (last_pose_ && last_pose_->segment != result.segment)) {
+    // Lost or a new segment: its world frame is new, and the old points do not belong to it.
+    last_pose_.reset();
+    previous_pose_.reset();
+    window_points_.clear();
+    light_distances_->clear();
+    if (!result.T_world_cam) return;
+  }
+  previous_pose_ = last_pose_;
+  last_pose_ = TrackedPose{result.frame_index, result.segment, *result.T_world_cam};
+  // The window's points change only when a keyframe is made (or tracking starts).
+  if (result.is_keyframe || window_points_.empty()) {
+    window_points_.clear();
+    for (const MapPoint& p : odometry_->points())
+      if (p.active && p.segment == result.segment) window_points_.push_back(p.p_world);
+  }
 }
 
 void SlamPipeline::update_trajectory(const Frame&, const OdometryResult& result) {

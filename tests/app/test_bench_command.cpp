@@ -34,11 +34,18 @@ TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
   EXPECT_TRUE(fs::exists(out / "runs/Room_50/calibrated/trajectory.txt"));
   EXPECT_TRUE(fs::exists(out / "runs/Room_50/illuminated/trajectory.txt"));
 
-  // A second bench reuses the rendered sequence.
-  const CommandResult again = run_command(nirslam("bench --scenes room --powers 50 --frames 40 --size 320x240 --modes odometry --out '" +
+  // A second bench reuses the rendered sequence, and hands its --config to every run.
+  const fs::path config = out / "my-pipeline.yaml";
+  fs::copy_file(fs::path(NIRSLAM_SOURCE_DIR) / "config/pipeline.yaml", config);
+  const CommandResult again = run_command(nirslam("--config '" + config.string() +
+                                                  "' bench --scenes room --powers 50 --frames 40 --size 320x240 --modes odometry --out '" +
                                                   out.string() + "'"));
   ASSERT_EQ(again.exit_code, 0) << again.output;
   EXPECT_EQ(again.output.find("rendering"), std::string::npos) << again.output;
+  const auto summary = lines_of(out / "runs/Room_50/odometry/summary.json");
+  bool names_config = false;
+  for (const std::string& line : summary) names_config |= line.find("my-pipeline.yaml") != std::string::npos;
+  EXPECT_TRUE(names_config) << "the run's summary names bench's --config file";
 }
 
 TEST(BenchCommand, QualityIsNotAnOdometryMode) {

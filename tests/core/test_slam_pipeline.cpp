@@ -1,12 +1,18 @@
 // The pipeline behind the worker: which stages each mode runs, what it says when a stage cannot
 // run, bad frames, and a short simulated sequence through every stage with the views it publishes.
 
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <optional>
+#include <string>
 #include <cmath>
 #include <memory>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/sim/simulator.hpp"
 
@@ -156,6 +162,102 @@ TEST(SlamPipelineSequence, CalibratedModeRunsEveryStageAndPublishesViews) {
   EXPECT_FALSE(trajectory->tracking.empty());
   EXPECT_EQ(static_cast<int>(trajectory->poses.size()), static_cast<int>(pipeline.odometry()->trajectory().size()));
   ASSERT_TRUE(trajectory->points != nullptr);
+}
+
+}  // namespace
+}  // namespace nirslam
+
+namespace nirslam {
+namespace {
+
+struct LampFeedRun {
+  int frames_with_distances = 0;
+  double median_distance_spread = 0.0;  // per frame: MAD of log(d_odometry / d_true)
+  PhotometricErrors errors;             // of the final estimate against the truth (halo factor V B)
+};
+
+// Issue 8 in the pipeline: under the co-located lamp (the only light) the calibration gets the
+// lamp's distance to its tracked patches from the odometry's points (Illuminated mode).
+LampFeedRun run_co_lit(sim::SceneKind scene, bool feed) {
+  SimulatorOptions sim;
+  sim.scene = scene;
+  sim.width = 320;
+  sim.height = 240;
+  sim.frames = 120;
+  sim.supersampling = 1;
+  sim.powers_w = {50.0};
+  sim.ambient_irradiance = 0.0;
+  sim.texture_filtering = TextureFiltering::DistanceIndependent;
+  sim.exposure_ms = 2.0;  // far from the auto-exposure target, so the exposure moves
+  Simulator simulator(sim);
+  PipelineOptions options;
+  options.mode = PipelineMode::Illuminated;
+  options.calibration.background_thread = false;
+  options.lamp_distances_to_calibration = feed;
+  SlamPipeline pipeline(options, simulator.camera());
+  LampFeedRun run;
+  PhotometricGroundTruth truth;
+  truth.response = sim.response;
+  truth.vignette = simulator.halo_factor();
+  std::vector<double> spreads;
+  while (auto f = simulator.next(true)) {
+    truth.exposures.emplace_back(f->frame.index, *f->frame.exposure_ms * f->frame.gain.value_or(1.0));
+    const PipelineFrameResult result = pipeline.process(f->frame);
+    if (result.light_distance_points == 0) continue;
+    ++run.frames_with_distances;
+    std::vector<double> log_ratios;
+    for (int y = 10; y < sim.height; y += 12)
+      for (int x = 10; x < sim.width; x += 12) {
+        const Eigen::Vector2d pixel(x, y);
+        const auto estimated = pipeline.light_distances()->light_distance(pixel);
+        const auto true_distance = simulator.light_distance(f->depth, pixel);
+        if (estimated && true_distance) log_ratios.push_back(std::log(*estimated / *true_distance));
+      }
+    if (log_ratios.size() < 20) continue;
+    // Monocular scale: only the spread about the frame's median ratio says how good they are.
+    std::nth_element(log_ratios.begin(), log_ratios.begin() + log_ratios.size() / 2, log_ratios.end());
+    const double median = log_ratios[log_ratios.size() / 2];
+    for (double& r : log_ratios) r = std::abs(r - median);
+    std::nth_element(log_ratios.begin(), log_ratios.begin() + log_ratios.size() / 2, log_ratios.end());
+    spreads.push_back(log_ratios[log_ratios.size() / 2]);
+  }
+  pipeline.finish();
+  if (!spreads.empty()) {
+    std::nth_element(spreads.begin(), spreads.begin() + spreads.size() / 2, spreads.end());
+    run.median_distance_spread = spreads[spreads.size() / 2];
+  }
+  const auto estimate = pipeline.calibration()->estimate();
+  run.errors = compare_with_ground_truth(estimate->response, estimate->vignette, pipeline.calibration()->exposure_history(),
+                                         truth, sim.width, sim.height);
+  return run;
+}
+
+void print(const char* label, const LampFeedRun& r) {
+  std::printf("%-14s distances on %3d frames (spread %.3f) | response %5.2f / %6.2f gl | halo %.4f / %.4f | exposure median %.2f %%\n",
+              label, r.frames_with_distances, r.median_distance_spread, r.errors.response_mean_grey,
+              r.errors.response_max_grey, r.errors.vignette_mean, r.errors.vignette_max,
+              100.0 * r.errors.exposure_median_relative);
+}
+
+TEST(SlamPipelineSequence, IlluminatedModeGivesTheCalibrationTheLampDistances) {
+  const LampFeedRun fed = run_co_lit(sim::SceneKind::Room, true);
+  const LampFeedRun plain = run_co_lit(sim::SceneKind::Room, false);
+  print("room fed", fed);
+  print("room plain", plain);
+  EXPECT_EQ(plain.frames_with_distances, 0);
+  EXPECT_GT(fed.frames_with_distances, 90);
+  EXPECT_LT(fed.median_distance_spread, 0.2);
+  EXPECT_LT(fed.errors.response_mean_grey, 0.5 * plain.errors.response_mean_grey);
+}
+
+// All four scenes (NIRSLAM_PIPELINE_COLIT_TABLE=1 to run it; a few minutes).
+TEST(SlamPipelineSequence, CoLitTable) {
+  if (std::getenv("NIRSLAM_PIPELINE_COLIT_TABLE") == nullptr) GTEST_SKIP() << "set NIRSLAM_PIPELINE_COLIT_TABLE=1";
+  for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
+    for (const bool feed : {false, true}) {
+      const std::string label = std::string(sim::to_string(scene)) + (feed ? " fed" : " plain");
+      print(label.c_str(), run_co_lit(scene, feed));
+    }
 }
 
 }  // namespace

@@ -24,6 +24,7 @@
 #include "nirslam/image/frame.hpp"
 #include "nirslam/odometry/direct_odometry.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
+#include "nirslam/pipeline/light_distance_map.hpp"
 #include "nirslam/sources/source.hpp"
 #include "nirslam/worker/photometric_view.hpp"
 #include "nirslam/worker/trajectory_view.hpp"
@@ -57,6 +58,11 @@ struct PipelineOptions {
   OdometryOptions odometry;
   OnlineCalibrationOptions calibration;
   std::size_t exposure_history = 600;  // frames in the photometric view's exposure plot
+  // Illuminated mode: the calibration gets the lamp's distance to its tracked patches from the
+  // odometry's points (light_distance_map.hpp), so its energy carries (d_ref/d)^2 (P/P_ref).
+  // Off: the calibration assumes constant radiance, as in Calibrated mode (for comparisons).
+  bool lamp_distances_to_calibration = true;
+  LightDistanceMapOptions light_distances;
 };
 
 struct PipelineTimings {
@@ -71,6 +77,8 @@ struct PipelineFrameResult {
   std::optional<CorrectedFrame> photometric;
   std::optional<OdometryResult> odometry;
   PipelineTimings timings;
+  // Points the calibration's lamp distances came from (0: it ran without distances).
+  std::size_t light_distance_points = 0;
 };
 
 class SlamPipeline {
@@ -99,6 +107,8 @@ public:
   // nullptr when the mode does not run them (or there is no camera for the odometry).
   const DirectOdometry* odometry() const { return odometry_.get(); }
   const OnlinePhotometricCalibration* calibration() const { return calibration_.get(); }
+  // The lamp distances the calibration got for the last frame (Illuminated mode; else nullptr).
+  const LightDistanceMap* light_distances() const { return light_distances_.get(); }
   // The pinhole the odometry works in (after undistortion), when it runs.
   const PinholeCamera* odometry_camera() const;
   // Why the odometry does not run, when it does not.
@@ -110,6 +120,9 @@ private:
   std::shared_ptr<TrajectoryView> rebuild_trajectory_view();
   void project_active_points(TrajectoryView& view) const;
   PoseSample pose_sample(std::int64_t frame_index, double timestamp_s, int segment, const SE3& T_world_cam) const;
+  // Builds the lamp distances for the frame about to be calibrated; false when there are none.
+  bool predict_light_distances();
+  void remember_odometry(const OdometryResult& result);
 
   PipelineOptions options_;
   std::shared_ptr<const CameraModel> camera_;
@@ -119,6 +132,17 @@ private:
   std::unique_ptr<OnlinePhotometricCalibration> calibration_;
   std::unique_ptr<DirectOdometry> odometry_;
   std::string odometry_off_reason_;
+
+  // Lamp distances for the calibration (Illuminated mode).
+  struct TrackedPose {
+    std::int64_t frame_index = 0;
+    int segment = 0;
+    SE3 T_world_cam;
+  };
+  std::unique_ptr<LightDistanceMap> light_distances_;
+  std::vector<Eigen::Vector3d> window_points_;  // the odometry's active points, world frame
+  std::optional<TrackedPose> last_pose_;
+  std::optional<TrackedPose> previous_pose_;
 
   // View state.
   std::vector<ExposurePoint> exposures_;

@@ -136,7 +136,9 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
       illumination.light_distance_m = [this](const Eigen::Vector2d& pixel) { return light_distances_->light_distance(pixel); };
       corrected = calibration_->process(frame, illumination);
       result.light_distance_points = light_distances_->projected_points();
+      light_distance_points_ = result.light_distance_points;
     } else {
+      light_distance_points_ = 0;
       corrected = calibration_->process(frame);
     }
     result.timings.photometric_ms = ms_since(start);
@@ -245,6 +247,10 @@ std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
     view->ambiguity = std::string(to_string(estimate->ambiguity)) +
                       (estimate->ambiguity_detail.empty() ? "" : ": " + estimate->ambiguity_detail);
     view->status = estimate->status;
+    if (light_distances_)
+      view->lamp_term = light_distance_points_ > 0
+                            ? fmt::format("lamp term: {} odometry points", light_distance_points_)
+                            : "lamp term: waiting for the odometry's points";
     const auto& history = calibration_->exposure_history();
     if (!history.empty()) {
       view->exposure_status = history.back().status == ExposureStatus::Estimated ? "estimated" : std::string();

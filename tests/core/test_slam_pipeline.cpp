@@ -174,6 +174,7 @@ struct LampFeedRun {
   int frames_with_distances = 0;
   double median_distance_spread = 0.0;  // per frame: MAD of log(d_odometry / d_true)
   PhotometricErrors errors;             // of the final estimate against the truth (halo factor V B)
+  std::string lamp_term;                // what the photometric view says of it
 };
 
 // Issue 8 in the pipeline: under the co-located lamp (the only light) the calibration gets the
@@ -222,6 +223,7 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed) {
     spreads.push_back(log_ratios[log_ratios.size() / 2]);
   }
   pipeline.finish();
+  run.lamp_term = pipeline.photometric_view()->lamp_term;
   if (!spreads.empty()) {
     std::nth_element(spreads.begin(), spreads.begin() + spreads.size() / 2, spreads.end());
     run.median_distance_spread = spreads[spreads.size() / 2];
@@ -245,6 +247,8 @@ TEST(SlamPipelineSequence, IlluminatedModeGivesTheCalibrationTheLampDistances) {
   print("room fed", fed);
   print("room plain", plain);
   EXPECT_EQ(plain.frames_with_distances, 0);
+  EXPECT_TRUE(plain.lamp_term.empty()) << plain.lamp_term;
+  EXPECT_NE(fed.lamp_term.find("odometry points"), std::string::npos) << fed.lamp_term;
   EXPECT_GT(fed.frames_with_distances, 90);
   EXPECT_LT(fed.median_distance_spread, 0.2);
   EXPECT_LT(fed.errors.response_mean_grey, 0.5 * plain.errors.response_mean_grey);

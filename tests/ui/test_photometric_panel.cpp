@@ -30,6 +30,7 @@ std::shared_ptr<PhotometricView> estimate_view() {
   view->points = 800;
   view->iterations = 9;
   view->ambiguity = "known exposures (reported by the source)";
+  view->lamp_term = "lamp term: 1234 odometry points";
   for (int i = 0; i < 200; ++i) {
     ExposurePoint p;
     p.frame_index = i;

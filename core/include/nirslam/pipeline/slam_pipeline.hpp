@@ -143,6 +143,7 @@ private:
   std::vector<Eigen::Vector3d> window_points_;  // the odometry's active points, world frame
   std::optional<TrackedPose> last_pose_;
   std::optional<TrackedPose> previous_pose_;
+  std::size_t light_distance_points_ = 0;  // of the last frame
 
   // View state.
   std::vector<ExposurePoint> exposures_;

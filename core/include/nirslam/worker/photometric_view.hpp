@@ -35,6 +35,9 @@ struct PhotometricView {
   std::string status;            // convergence status, or why there is no estimate yet
   std::string exposure_status;   // the last frame's exposure estimate: "estimated", or why not
   std::string exposure_unit = "ms";  // "ms" when anchored to reported exposures, else "relative"
+  // The lamp's distance term (Illuminated mode): from how many odometry points the last frame's
+  // distances came, or what it waits for; empty when the mode has no such term.
+  std::string lamp_term;
   // Ground truth, when the source has it (simulator), for the overlays.
   std::optional<ResponseModel> true_response;
   std::optional<VignetteModel> true_vignette;

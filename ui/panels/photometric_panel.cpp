@@ -104,13 +104,9 @@ void PhotometricPanel::draw_status(const PhotometricView& view) {
                 view.iterations);
   else
     ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.status.empty() ? "no back-end estimate yet" : view.status.c_str());
-  // The legend before the long texts, so a narrow window clips those, not it.
+  // The legend and the lamp term before the long ambiguity text, so a narrow window clips that.
   ImGui::SameLine(0.0f, 16.0f);
   legend(view.true_response.has_value() || view.true_vignette.has_value());
-  ImGui::SameLine(0.0f, 16.0f);
-  ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.ambiguity.empty() ? "" : view.ambiguity.c_str());
-  if (!view.ambiguity.empty() && ImGui::IsItemHovered())
-    ImGui::SetTooltip("The response is only known up to f^gamma and a scale: this is how the estimate fixes them");
   if (!view.lamp_term.empty()) {
     ImGui::SameLine(0.0f, 16.0f);
     ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.lamp_term.c_str());
@@ -118,6 +114,10 @@ void PhotometricPanel::draw_status(const PhotometricView& view) {
       ImGui::SetTooltip("Under the co-located lamp a point's radiance changes with its distance: the calibration takes\n"
                         "the distances from the odometry's points and divides out (d_ref/d)^2 (P/P_ref)");
   }
+  ImGui::SameLine(0.0f, 16.0f);
+  ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.ambiguity.empty() ? "" : view.ambiguity.c_str());
+  if (!view.ambiguity.empty() && ImGui::IsItemHovered())
+    ImGui::SetTooltip("The response is only known up to f^gamma and a scale: this is how the estimate fixes them");
 }
 
 void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {

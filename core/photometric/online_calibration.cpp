@@ -139,8 +139,12 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
   if (illumination != nullptr && illumination->light_distance_m) {
     const double power = illumination->power_w.value_or(frame.illuminator_power_w.value_or(1.0));
     log_illumination_.resize(tracked.tracks.size());
-    for (std::size_t i = 0; i < tracked.tracks.size(); ++i)
-      log_illumination_[i] = nirslam::log_illumination(power, illumination->light_distance_m(tracked.tracks[i].position));
+    for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
+      const Eigen::Vector2d& pixel = tracked.tracks[i].position;
+      log_illumination_[i] = illumination->light_cosine
+                                 ? nirslam::log_illumination(power, illumination->light_distance_m(pixel), illumination->light_cosine(pixel))
+                                 : nirslam::log_illumination(power, illumination->light_distance_m(pixel));
+    }
     log_illumination = &log_illumination_;
   }
   CorrectedFrame out;

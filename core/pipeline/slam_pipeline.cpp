@@ -134,6 +134,11 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     if (predict_light_distances()) {
       FrameIllumination illumination;
       illumination.light_distance_m = [this](const Eigen::Vector2d& pixel) { return light_distances_->light_distance(pixel); };
+      if (options_.lamp_cosine_to_calibration)
+        illumination.light_cosine = [this](const Eigen::Vector2d& pixel) -> std::optional<double> {
+          const auto geometry = light_distances_->light_geometry(pixel);
+          return geometry ? geometry->cosine : std::nullopt;
+        };
       corrected = calibration_->process(frame, illumination);
       result.light_distance_points = light_distances_->projected_points();
       light_distance_points_ = result.light_distance_points;

@@ -90,3 +90,45 @@ TEST(LightDistanceMap, PointsBehindOrOutsideAreLeftOut) {
 
 }  // namespace
 }  // namespace nirslam
+
+namespace nirslam {
+namespace {
+
+TEST(LightDistanceMap, CosineOfTheLightOnAPlane) {
+  const PinholeCamera camera(640, 480, Eigen::Vector4d(500.0, 500.0, 320.0, 240.0));
+  LightDistanceMap map(camera);
+  // A floor 1.5 m below the camera (y down), seen ahead: the light grazes it far away.
+  std::vector<Eigen::Vector3d> points;
+  for (int y = 250; y < 480; y += 5)
+    for (int x = 3; x < 640; x += 5) {
+      const Eigen::Vector3d ray = *camera.unproject(Eigen::Vector2d(x, y));
+      points.push_back(ray * (1.5 / ray.y()));
+    }
+  map.build(points, SE3::identity(), Eigen::Vector3d::Zero());
+  for (const Eigen::Vector2d& pixel : {Eigen::Vector2d(320.0, 300.0), Eigen::Vector2d(320.0, 450.0), Eigen::Vector2d(100.0, 400.0)}) {
+    const auto geometry = map.light_geometry(pixel);
+    ASSERT_TRUE(geometry) << pixel.transpose();
+    const Eigen::Vector3d ray = *camera.unproject(pixel);
+    const Eigen::Vector3d surface = ray * (1.5 / ray.y());
+    const double cosine = 1.5 / surface.norm();  // normal (0, -1, 0) towards the lamp at the origin
+    if (cosine < 0.2) {
+      EXPECT_FALSE(geometry->cosine) << "grazing: left out";
+      continue;
+    }
+    ASSERT_TRUE(geometry->cosine) << pixel.transpose();
+    EXPECT_NEAR(*geometry->cosine, cosine, 0.02) << pixel.transpose();
+  }
+  // A scattered cloud fits no plane: a distance, no cosine.
+  std::vector<Eigen::Vector3d> cloud;
+  for (int i = 0; i < 400; ++i) {
+    const Eigen::Vector2d pixel(300.0 + (i * 37) % 40, 220.0 + (i * 53) % 40);
+    cloud.push_back((1.0 + 0.5 * ((i * 7919) % 13) / 13.0) * *camera.unproject(pixel));
+  }
+  map.build(cloud, SE3::identity(), Eigen::Vector3d::Zero());
+  const auto geometry = map.light_geometry(Eigen::Vector2d(320.0, 240.0));
+  ASSERT_TRUE(geometry);
+  EXPECT_FALSE(geometry->cosine);
+}
+
+}  // namespace
+}  // namespace nirslam

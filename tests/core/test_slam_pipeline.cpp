@@ -195,6 +195,7 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed) {
   options.mode = PipelineMode::Illuminated;
   options.calibration.background_thread = false;
   options.lamp_distances_to_calibration = feed;
+  options.lamp_cosine_to_calibration = std::getenv("NIRSLAM_PIPELINE_COSINE") != nullptr;
   SlamPipeline pipeline(options, simulator.camera());
   LampFeedRun run;
   PhotometricGroundTruth truth;

@@ -11,8 +11,10 @@
 // L_p now the point's radiance at the reference distance and power (its first usable
 // observation). B(alpha) stays with the pixel (alpha is, for a light a few centimetres from the
 // lens, the pixel's angle off the optical axis), so it is estimated as part of the halo factor
-// H(x) = V(x) B(x) that the vignette polynomial models. cos(theta_i) needs a surface normal, which
-// a per-pixel distance does not give: it is left out (for a wall approached head-on it stays 1).
+// H(x) = V(x) B(x) that the vignette polynomial models. cos(theta_i), the light's incidence on the
+// surface, needs a surface normal: when the caller has one (FrameIllumination::light_cosine) the
+// factor carries cos(theta_i) / cos(theta_ref) too, else it is left out (for a wall approached
+// head-on it stays 1; for a floor seen ahead of a vehicle it does not).
 //
 // Factors are carried in the log domain: log a_i = log_illumination(P_i, d_i) - log_illumination
 // (P_ref, d_ref), with log_illumination = log P - 2 log d, and NaN where a distance is unknown
@@ -33,17 +35,28 @@ struct FrameIllumination {
   // Distance in metres from the illuminator to the surface seen at `pixel` (full-resolution pixel
   // coordinates of the frame); std::nullopt where unknown.
   std::function<std::optional<double>(const Eigen::Vector2d& pixel)> light_distance_m;
+  // cos(theta) of the light's incidence on the surface seen at `pixel`. An empty function leaves
+  // the cosine out everywhere; std::nullopt at a pixel leaves that observation out (a factor with
+  // the cosine at one observation and without at another would be wrong).
+  std::function<std::optional<double>(const Eigen::Vector2d& pixel)> light_cosine;
   // The lamp's power; std::nullopt: Frame::illuminator_power_w, and 1 when that is missing too.
   std::optional<double> power_w;
 };
 
 // log(P / d^2); NaN when the distance or power is not usable. With d_log_d, the derivative of the
 // result with respect to d (-2 / d).
+// With a cosine as well: log(P cos / d^2); NaN when the cosine is not a usable one.
+inline double log_illumination(double power_w, std::optional<double> distance_m, std::optional<double> cosine);
 inline double log_illumination(double power_w, std::optional<double> distance_m, double* d_log_d = nullptr) {
   if (!distance_m || !(*distance_m > 1e-3) || !std::isfinite(*distance_m) || !(power_w > 0.0) || !std::isfinite(power_w))
     return std::nan("");
   if (d_log_d != nullptr) *d_log_d = -2.0 / *distance_m;
   return std::log(power_w) - 2.0 * std::log(*distance_m);
+}
+
+inline double log_illumination(double power_w, std::optional<double> distance_m, std::optional<double> cosine) {
+  if (!cosine || !(*cosine > 0.0) || !(*cosine <= 1.0)) return std::nan("");
+  return log_illumination(power_w, distance_m) + std::log(*cosine);
 }
 
 }  // namespace nirslam

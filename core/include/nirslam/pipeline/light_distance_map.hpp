@@ -8,6 +8,7 @@
 // (d_ref / d)^2 when the light sits at the camera centre, and nearly so for a lamp a few
 // centimetres beside the lens.
 
+#include <array>
 #include <cstddef>
 #include <optional>
 #include <span>
@@ -23,6 +24,17 @@ namespace nirslam {
 struct LightDistanceMapOptions {
   double search_radius_px = 20.0;  // at 640 pixels wide; scaled with the image width
   int min_neighbours = 3;          // projected points within the radius for a distance
+  // cos(theta) of the lamp's light on the surface, from a plane fitted to the neighbours: at
+  // least this many of them, and flat enough (smallest / middle eigenvalue of their scatter).
+  int min_plane_points = 8;
+  double max_plane_flatness = 0.15;
+  double min_cosine = 0.2;         // grazing light (or a wrong normal): no cosine
+};
+
+// What a pixel's neighbours say of the lamp's light on the surface there.
+struct LightGeometry {
+  double distance = 0.0;              // from the lamp to the surface
+  std::optional<double> cosine;       // of the angle between the light's ray and the surface normal
 };
 
 class LightDistanceMap {
@@ -39,6 +51,8 @@ public:
   // Distance from the lamp to the surface seen at `pixel` (the frame's own pixel coordinates),
   // std::nullopt where no projected point is near or the near ones disagree.
   std::optional<double> light_distance(const Eigen::Vector2d& pixel) const;
+  // The distance and, where a plane fits the neighbours, the cosine.
+  std::optional<LightGeometry> light_geometry(const Eigen::Vector2d& pixel) const;
 
   std::size_t projected_points() const { return entries_.size(); }
   bool empty() const { return entries_.empty(); }
@@ -48,7 +62,10 @@ private:
   struct Entry {
     Eigen::Vector2f pixel;
     float log_light_distance;  // log |p_cam - light_offset|
+    Eigen::Vector3f p_light;   // the point relative to the lamp, camera axes
   };
+  // The neighbours of a pixel (at most kMaxNeighbours); their count.
+  std::size_t neighbours(const Eigen::Vector2d& pixel, std::array<const Entry*, kMaxNeighbours>& out) const;
   int cell_of(int cx, int cy) const { return cy * cells_x_ + cx; }
 
   LightDistanceMapOptions options_;

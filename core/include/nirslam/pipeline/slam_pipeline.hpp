@@ -62,6 +62,8 @@ struct PipelineOptions {
   // odometry's points (light_distance_map.hpp), so its energy carries (d_ref/d)^2 (P/P_ref).
   // Off: the calibration assumes constant radiance, as in Calibrated mode (for comparisons).
   bool lamp_distances_to_calibration = true;
+  // ... and cos(theta) from planes fitted to the points (patches where no plane fits are left out).
+  bool lamp_cosine_to_calibration = false;
   LightDistanceMapOptions light_distances;
 };
 

@@ -46,6 +46,7 @@ void CoarseInitializer::set_first(std::shared_ptr<const ImagePyramid> pyramid, d
   a_ = 0.0;
   b_ = 0.0;
   snapped_ = false;
+  hypotheses_.clear();
   frames_ = 0;
   frames_since_snap_ = 0;
   state_ = points_.size() >= 50 ? InitializerState::Tracking : InitializerState::Failed;
@@ -233,15 +234,15 @@ double CoarseInitializer::inlier_fraction() const {
   return static_cast<double>(good) / static_cast<double>(points_.size());
 }
 
-InitializerState CoarseInitializer::add_frame(const ImagePyramid& frame, double exposure) {
-  if (state_ != InitializerState::Tracking) return state_;
-  ++frames_;
+void CoarseInitializer::optimize_levels(const ImagePyramid& frame, double exposure) {
   const int levels = std::min(frame.levels(), static_cast<int>(cameras_.size()));
   for (int l = levels - 1; l >= 0; --l) {
     if (snapped_) update_neighbour_means();
     optimize_level(l, frame, exposure, l == 0 ? 8 : 12);
   }
-  // Gauge: mean inverse depth 1 (the translation scales along).
+}
+
+void CoarseInitializer::normalise_gauge() {
   double mean = 0.0;
   for (const auto& p : points_) mean += p.inverse_depth;
   mean /= static_cast<double>(std::max<std::size_t>(1, points_.size()));
@@ -249,8 +250,9 @@ InitializerState CoarseInitializer::add_frame(const ImagePyramid& frame, double 
     for (auto& p : points_) p.inverse_depth /= mean;
     T_frame_first_ = SE3(T_frame_first_.unit_quaternion(), T_frame_first_.translation() * mean);
   }
+}
 
-  // Parallax: rms pixel shift caused by the translation alone.
+double CoarseInitializer::translational_parallax() const {
   const LevelCamera& cam = cameras_[0];
   double sum = 0.0;
   int n = 0;
@@ -261,8 +263,68 @@ InitializerState CoarseInitializer::add_frame(const ImagePyramid& frame, double 
     sum += (w.pixel - p.pixel).squaredNorm();
     ++n;
   }
-  parallax_ = n > 0 ? std::sqrt(sum / n) * 640.0 / cam.width : 0.0;
-  if (!snapped_ && parallax_ > options_.min_parallax_px) snapped_ = true;
+  return n > 0 ? std::sqrt(sum / n) * 640.0 / cam.width : 0.0;
+}
+
+void CoarseInitializer::load(const Hypothesis& h) {
+  T_frame_first_ = h.T;
+  a_ = h.a;
+  b_ = h.b;
+  points_ = h.points;
+}
+
+void CoarseInitializer::align_hypotheses(const ImagePyramid& frame, double exposure) {
+  std::size_t best = 0;
+  for (std::size_t k = 0; k < hypotheses_.size(); ++k) {
+    Hypothesis& h = hypotheses_[k];
+    load(h);
+    optimize_levels(frame, exposure);
+    normalise_gauge();
+    std::vector<double> rho(points_.size());
+    for (std::size_t i = 0; i < points_.size(); ++i) rho[i] = points_[i].inverse_depth;
+    update_neighbour_means();
+    h = current_state();
+    h.energy = evaluate(0, frame, exposure, T_frame_first_, a_, b_, rho, false);
+  }
+  // The pre-snap hypothesis (0) is kept unless another explains the frame clearly better: over
+  // a small baseline the energies of different structures are close.
+  for (std::size_t k = 1; k < hypotheses_.size(); ++k)
+    if (hypotheses_[k].energy < (1.0 - options_.hypothesis_margin) * hypotheses_[0].energy &&
+        (best == 0 || hypotheses_[k].energy < hypotheses_[best].energy))
+      best = k;
+  load(hypotheses_[best]);
+  // rms and inliers of the kept one.
+  std::vector<double> rho(points_.size());
+  for (std::size_t i = 0; i < points_.size(); ++i) rho[i] = points_[i].inverse_depth;
+  update_neighbour_means();
+  evaluate(0, frame, exposure, T_frame_first_, a_, b_, rho, false);
+  for (std::size_t i = 0; i < points_.size(); ++i) points_[i].good = inliers_[i] != 0;
+}
+
+InitializerState CoarseInitializer::add_frame(const ImagePyramid& frame, double exposure) {
+  if (state_ != InitializerState::Tracking) return state_;
+  ++frames_;
+  if (snapped_) {
+    align_hypotheses(frame, exposure);
+  } else {
+    optimize_levels(frame, exposure);
+    parallax_ = translational_parallax();
+    if (parallax_ > options_.min_parallax_px) {
+      snapped_ = true;
+      hypotheses_.assign(1, current_state());
+      if (options_.multi_start_at_snap) {
+        const Eigen::Vector3d t = T_frame_first_.translation();
+        const Eigen::Quaterniond q = T_frame_first_.unit_quaternion();
+        hypotheses_.push_back({SE3(Eigen::Quaterniond::Identity(), t), a_, b_, points_, 0.0});
+        for (const double sign : {-1.0, 1.0})
+          hypotheses_.push_back({SE3(q, sign * t.norm() * Eigen::Vector3d::UnitZ()), a_, b_, points_, 0.0});
+      }
+      // The depth-regularised alignment starts on the next frame (more baseline): aligned on the
+      // snap frame itself, the depths of the pre-snap pose wander along the small-baseline
+      // ambiguity (room 50 W: 4.6 % of the path instead of 0.7 %).
+    }
+  }
+  parallax_ = translational_parallax();
   if (snapped_ && ++frames_since_snap_ > options_.frames_after_snap) state_ = InitializerState::Succeeded;
   return state_;
 }

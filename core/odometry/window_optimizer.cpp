@@ -149,17 +149,41 @@ Vector8d WindowOptimizer::prior_delta(const WindowFrame& frame) const {
   return d;
 }
 
-double WindowOptimizer::energy() {
+double WindowOptimizer::energy() { return evaluate_residuals(nullptr, nullptr) + frame_prior_energy(); }
+
+// Per-pair 9x9 blocks of the relative parameters (xi of T_target_host, a_t, b_t, b_h), one set
+// per worker thread, summed by the caller.
+struct WindowOptimizer::Linearization {
+  std::array<std::vector<Matrix9d>, 2> H_rel;
+  std::array<std::vector<Vector9d>, 2> b_rel;
+  std::vector<Matrix89d> host_maps;  // per pair: relative parameters -> the host's
+};
+
+double WindowOptimizer::evaluate_residuals(const std::vector<int>* only_hosts, Linearization* lin) {
   const std::size_t n = frames_.size();
   const auto pairs = make_pairs(frames_);
+  if (lin != nullptr) {
+    lin->host_maps.assign(n * n, Matrix89d::Zero());
+    for (std::size_t i = 0; i < n * n; ++i)
+      if (pairs[i].valid) lin->host_maps[i] = host_map(pairs[i]);
+    for (std::size_t wk = 0; wk < 2; ++wk) {
+      lin->H_rel[wk].assign(n * n, Matrix9d::Zero());
+      lin->b_rel[wk].assign(n * n, Vector9d::Zero());
+    }
+  }
   const double k = options_.huber_threshold;
   const double c2 = options_.gradient_weight_c * options_.gradient_weight_c;
-  const double clamp = options_.outlier_energy * kPatternSize;
+  const double outlier = options_.outlier_energy * kPatternSize;
+
   std::vector<std::pair<std::size_t, WindowPoint*>> items;
-  for (std::size_t h = 0; h < n; ++h)
+  for (std::size_t h = 0; h < n; ++h) {
+    if (only_hosts != nullptr &&
+        std::find(only_hosts->begin(), only_hosts->end(), static_cast<int>(h)) == only_hosts->end())
+      continue;
     for (auto& point : frames_[h].points) items.emplace_back(h, &point);
+  }
   struct Sums {
-    double e = 0.0, inlier_energy = 0.0;
+    double energy = 0.0, inlier_energy = 0.0;
     int inlier_count = 0;
   };
   std::array<Sums, 2> sums{};
@@ -168,61 +192,106 @@ double WindowOptimizer::energy() {
     for (std::size_t item = begin; item < end; ++item) {
       const std::size_t h = items[item].first;
       WindowPoint& point = *items[item].second;
-      if (point.inverse_depth_prior_weight > 0.0) {
-        const double d = point.inverse_depth - point.inverse_depth_prior_mean;
-        acc.e += point.inverse_depth_prior_weight * d * d;
+      const double d_prior = point.inverse_depth - point.inverse_depth_prior_mean;
+      acc.energy += point.inverse_depth_prior_weight * d_prior * d_prior;
+      if (lin != nullptr) {
+        point.H_pp = point.inverse_depth_prior_weight;
+        point.b_p = point.inverse_depth_prior_weight * d_prior;
+        point.H_host_point.setZero();
       }
       for (auto& res : point.residuals) {
+        res.inlier = false;
+        if (lin != nullptr) res.H_target_point.setZero();
         const int t = index_of(res.target_id);
         if (t < 0) continue;
-        const PairCache& p = pairs[h * n + static_cast<std::size_t>(t)];
+        const std::size_t pair_index = h * n + static_cast<std::size_t>(t);
+        const PairCache& p = pairs[pair_index];
         const PyramidLevel& target = frames_[static_cast<std::size_t>(t)].pyramid->level(0);
+        // A residual that cannot be evaluated counts as an outlier.
+        res.energy = outlier;
+
+        // Linearisation only: the geometric Jacobian of the centre pixel, at the first
+        // estimates, serves the whole pattern (as in DSO): the pattern spans a few pixels of one
+        // surface. The lamp: g at the current state, its derivatives at the first estimates (as
+        // the warp's), from the centre pixel for the whole pattern.
+        Matrix26d d_pose = Matrix26d::Zero();
+        Eigen::Vector2d d_rho = Eigen::Vector2d::Zero();
+        LampFactor lamp;
+        const Eigen::Vector3d* normal = point.normal ? &*point.normal : nullptr;
+        if (lin != nullptr) {
+          Warp wj;
+          if (!warp_pixel(camera_, p.R_jacobian, p.t_jacobian, point.pixel, point.inverse_depth, wj)) {
+            acc.energy += outlier;
+            continue;
+          }
+          warp_jacobians(camera_, wj, p.t_jacobian, d_pose, d_rho);
+          if (options_.lamp.enabled &&
+              !lamp_factor(camera_.unproject(point.pixel), point.inverse_depth, p.R_jacobian, p.t_jacobian,
+                           options_.lamp, lamp, normal)) {
+            acc.energy += outlier;
+            continue;
+          }
+        }
+        lamp.g = lamp_value(options_, camera_, point, p.R, p.t);
+        const double g_scale = lamp.g * p.affine.scale;
+
+        Matrix9d H_r = Matrix9d::Zero();
+        Vector9d b_r = Vector9d::Zero();
+        Vector9d H_rp = Vector9d::Zero();
+        double H_pp = 0.0;
+        double b_pp = 0.0;
         double energy = 0.0;
         bool in_view = true;
-        const double g = lamp_value(options_, camera_, point, p.R, p.t);
-        for (int i = 0; i < kPatternSize && in_view; ++i) {
-          const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(kPattern[static_cast<std::size_t>(i)][0],
-                                                                    kPattern[static_cast<std::size_t>(i)][1]);
+        for (int i = 0; i < kPatternSize; ++i) {
+          const auto& o = kPattern[static_cast<std::size_t>(i)];
+          const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(o[0], o[1]);
           Warp w;
           if (!warp_pixel(camera_, p.R, p.t, px, point.inverse_depth, w) ||
               !camera_.inside(w.pixel.x(), w.pixel.y(), 1.0)) {
             in_view = false;
             break;
           }
-          const Eigen::Vector3f s =
-              target.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
-          const double r = s[0] -
-                           g * p.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host) -
-                           p.affine.b_target;
+          const Eigen::Vector3f s = target.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
+          const double host_term = g_scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host);
+          const double r = s[0] - host_term - p.affine.b_target;
           const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()));
           const double hw = huber_weight(r, k);
           energy += wg * hw * r * r * (2.0 - hw);
+          if (lin == nullptr) continue;
+          const double W = wg * hw;
+          const Eigen::Vector2d g = s.tail<2>().cast<double>();
+          Vector9d J;
+          J.head<6>() = (g.transpose() * d_pose - host_term * lamp.d_log_g_d_pose).transpose();
+          J[6] = -host_term;
+          J[7] = -1.0;
+          J[8] = g_scale;
+          const double J_rho = g.dot(d_rho) - host_term * lamp.d_log_g_d_rho;
+          H_r.noalias() += (W * J) * J.transpose();
+          b_r += W * r * J;
+          H_rp += W * J_rho * J;
+          H_pp += W * J_rho * J_rho;
+          b_pp += W * J_rho * r;
         }
-        res.energy = in_view ? std::min(energy, clamp) : clamp;
-        acc.e += res.energy;
-        if (in_view && energy < clamp) {
-          acc.inlier_energy += energy;
-          acc.inlier_count += kPatternSize;
-        }
+        if (in_view) res.energy = std::min(energy, outlier);
+        acc.energy += res.energy;
+        if (!in_view || energy > outlier) continue;
+        res.inlier = true;
+        acc.inlier_energy += energy;
+        acc.inlier_count += kPatternSize;
+        if (lin == nullptr) continue;
+        lin->H_rel[static_cast<std::size_t>(worker)][pair_index] += H_r;
+        lin->b_rel[static_cast<std::size_t>(worker)][pair_index] += b_r;
+        point.H_host_point += lin->host_maps[pair_index] * H_rp;
+        res.H_target_point = H_rp.head<8>();
+        point.H_pp += H_pp;
+        point.b_p += b_pp;
       }
     }
   });
-  double e = sums[0].e + sums[1].e;
   const double inlier_energy = sums[0].inlier_energy + sums[1].inlier_energy;
   const int inlier_count = sums[0].inlier_count + sums[1].inlier_count;
   last_rms_ = inlier_count > 0 ? std::sqrt(inlier_energy / inlier_count) : 0.0;
-  // Priors.
-  for (std::size_t i = 0; i < n; ++i) {
-    const WindowFrame& f = frames_[i];
-    e += f.affine_a_prior_weight * f.state.affine_a * f.state.affine_a;
-    e += f.affine_b_prior_weight * f.state.affine_b * f.state.affine_b;
-    if (f.pose_prior_weight > 0.0)
-      e += f.pose_prior_weight * (f.state.T_cam_world * f.pose_prior.inverse()).log().squaredNorm();
-  }
-  Eigen::VectorXd delta(static_cast<Eigen::Index>(8 * n));
-  for (std::size_t i = 0; i < n; ++i) delta.segment<8>(static_cast<Eigen::Index>(8 * i)) = prior_delta(frames_[i]);
-  e += 2.0 * b_prior_.dot(delta) + delta.dot(H_prior_ * delta);
-  return e;
+  return sums[0].energy + sums[1].energy;
 }
 
 double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool schur, double lambda,
@@ -231,138 +300,19 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
   const auto N = static_cast<Eigen::Index>(8 * n);
   H.setZero(N, N);
   b.setZero(N);
-  const auto pairs = make_pairs(frames_);
-  std::vector<Matrix89d> host_maps(n * n);
-  for (std::size_t i = 0; i < n * n; ++i)
-    if (pairs[i].valid) host_maps[i] = host_map(pairs[i]);
-  const double k = options_.huber_threshold;
-  const double c2 = options_.gradient_weight_c * options_.gradient_weight_c;
-  const double outlier = options_.outlier_energy * kPatternSize;
-
-  // Relative (9x9) blocks per pair, mapped to host/target at the end, as DSO accumulates.
-  std::vector<Matrix9d> H_rel(n * n, Matrix9d::Zero());
-  std::vector<Vector9d> b_rel(n * n, Vector9d::Zero());
-  std::vector<int> target_index;
-
+  Linearization lin;
+  const double residual_energy = evaluate_residuals(only_hosts, &lin);
+  const std::vector<Matrix89d>& host_maps = lin.host_maps;
+  std::vector<Matrix9d> H_rel(n * n);
+  std::vector<Vector9d> b_rel(n * n);
+  for (std::size_t i = 0; i < n * n; ++i) {
+    H_rel[i] = lin.H_rel[0][i] + lin.H_rel[1][i];
+    b_rel[i] = lin.b_rel[0][i] + lin.b_rel[1][i];
+  }
   auto hosts_to_use = [&](std::size_t h) {
     return only_hosts == nullptr ||
            std::find(only_hosts->begin(), only_hosts->end(), static_cast<int>(h)) != only_hosts->end();
   };
-
-  std::vector<std::pair<std::size_t, WindowPoint*>> items;
-  for (std::size_t h = 0; h < n; ++h) {
-    if (!hosts_to_use(h)) continue;
-    for (auto& point : frames_[h].points) items.emplace_back(h, &point);
-  }
-  std::array<double, 2> energy_sum{0.0, 0.0};
-  std::array<std::vector<Matrix9d>, 2> H_rel_worker;
-  std::array<std::vector<Vector9d>, 2> b_rel_worker;
-  for (int wk = 0; wk < 2; ++wk) {
-    H_rel_worker[static_cast<std::size_t>(wk)].assign(n * n, Matrix9d::Zero());
-    b_rel_worker[static_cast<std::size_t>(wk)].assign(n * n, Vector9d::Zero());
-  }
-  parallel_chunks(items.size(), [&](std::size_t begin, std::size_t end, int worker) {
-    std::vector<Matrix9d>& H_rel_local = H_rel_worker[static_cast<std::size_t>(worker)];
-    std::vector<Vector9d>& b_rel_local = b_rel_worker[static_cast<std::size_t>(worker)];
-    for (std::size_t item = begin; item < end; ++item) {
-      const std::size_t h = items[item].first;
-      WindowPoint& point = *items[item].second;
-        point.H_pp = point.inverse_depth_prior_weight;
-        {
-          const double d = point.inverse_depth - point.inverse_depth_prior_mean;
-          energy_sum[static_cast<std::size_t>(worker)] += point.inverse_depth_prior_weight * d * d;
-        }
-        point.b_p = point.inverse_depth_prior_weight * (point.inverse_depth - point.inverse_depth_prior_mean);
-        point.H_host_point.setZero();
-        for (auto& res : point.residuals) {
-          res.H_target_point.setZero();
-          res.inlier = false;
-          const int t = index_of(res.target_id);
-          if (t < 0) continue;
-          const std::size_t pair_index = h * n + static_cast<std::size_t>(t);
-          const PairCache& p = pairs[pair_index];
-          const PyramidLevel& target = frames_[static_cast<std::size_t>(t)].pyramid->level(0);
-
-          Matrix9d H_r = Matrix9d::Zero();
-          Vector9d b_r = Vector9d::Zero();
-          Vector9d H_rp = Vector9d::Zero();
-          double H_pp = 0.0;
-          double b_pp = 0.0;
-          double energy = 0.0;
-          bool in_view = true;
-          // The geometric Jacobian of the centre pixel, at the first estimates, serves the
-          // whole pattern (as in DSO): the pattern spans a few pixels of one surface.
-          Warp wj;
-          if (!warp_pixel(camera_, p.R_jacobian, p.t_jacobian, point.pixel, point.inverse_depth, wj)) {
-            res.energy = outlier;
-            continue;
-          }
-          Matrix26d d_pose;
-          Eigen::Vector2d d_rho;
-          warp_jacobians(camera_, wj, p.t_jacobian, d_pose, d_rho);
-          // The lamp: g at the current state, its derivatives at the first estimates (as the
-          // warp's), from the centre pixel for the whole pattern.
-          LampFactor lamp;
-          if (options_.lamp.enabled) {
-            const Eigen::Vector3d ray = camera_.unproject(point.pixel);
-            const Eigen::Vector3d* normal = point.normal ? &*point.normal : nullptr;
-            if (!lamp_factor(ray, point.inverse_depth, p.R_jacobian, p.t_jacobian, options_.lamp, lamp, normal)) {
-              res.energy = outlier;
-              continue;
-            }
-            lamp.g = lamp_factor_value(ray, point.inverse_depth, p.R, p.t, options_.lamp, normal);
-          }
-          const double g_scale = lamp.g * p.affine.scale;
-          for (int i = 0; i < kPatternSize; ++i) {
-            const auto& o = kPattern[static_cast<std::size_t>(i)];
-            const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(o[0], o[1]);
-            Warp w;
-            if (!warp_pixel(camera_, p.R, p.t, px, point.inverse_depth, w) ||
-                !camera_.inside(w.pixel.x(), w.pixel.y(), 1.0)) {
-              in_view = false;
-              break;
-            }
-            const Eigen::Vector3f s =
-                target.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
-            const double host_term =
-                g_scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host);
-            const double r = s[0] - host_term - p.affine.b_target;
-            const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()));
-            const double hw = huber_weight(r, k);
-            energy += wg * hw * r * r * (2.0 - hw);
-            const double W = wg * hw;
-
-            const Eigen::Vector2d g = s.tail<2>().cast<double>();
-            Vector9d J;
-            J.head<6>() = (g.transpose() * d_pose - host_term * lamp.d_log_g_d_pose).transpose();
-            J[6] = -host_term;
-            J[7] = -1.0;
-            J[8] = g_scale;
-            const double J_rho = g.dot(d_rho) - host_term * lamp.d_log_g_d_rho;
-            H_r.noalias() += (W * J) * J.transpose();
-            b_r += W * r * J;
-            H_rp += W * J_rho * J;
-            H_pp += W * J_rho * J_rho;
-            b_pp += W * J_rho * r;
-          }
-          res.energy = in_view ? std::min(energy, outlier) : outlier;
-          energy_sum[static_cast<std::size_t>(worker)] += res.energy;
-          if (!in_view || energy > outlier) continue;
-          res.inlier = true;
-          H_rel_local[pair_index] += H_r;
-          b_rel_local[pair_index] += b_r;
-          const Matrix89d& M = host_maps[pair_index];
-          point.H_host_point += M * H_rp;
-          res.H_target_point = H_rp.head<8>();
-          point.H_pp += H_pp;
-          point.b_p += b_pp;
-        }
-    }
-  });
-  for (std::size_t i = 0; i < n * n; ++i) {
-    H_rel[i] = H_rel_worker[0][i] + H_rel_worker[1][i];
-    b_rel[i] = b_rel_worker[0][i] + b_rel_worker[1][i];
-  }
 
   for (std::size_t h = 0; h < n; ++h) {
     for (std::size_t t = 0; t < n; ++t) {
@@ -388,7 +338,7 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
     H += H_prior_;
     b += b_prior_ + H_prior_ * delta;
   }
-  double total_energy = energy_sum[0] + energy_sum[1] + (include_priors ? frame_prior_energy() : 0.0);
+  const double total_energy = residual_energy + (include_priors ? frame_prior_energy() : 0.0);
 
   if (lambda > 0.0) H.diagonal() *= 1.0 + lambda;
   if (!schur) return total_energy;

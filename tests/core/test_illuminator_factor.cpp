@@ -11,6 +11,7 @@
 
 #include "nirslam/odometry/photometric_residual.hpp"
 #include "nirslam/odometry/surface_normals.hpp"
+#include "residual_jacobian_check.hpp"
 
 namespace nirslam::odometry {
 namespace {
@@ -113,70 +114,31 @@ TEST(IlluminatorFactor, LogDerivativesMatchNumericDifferentiation) {
   }
 }
 
-// A smooth image, so bilinear interpolation's gradient matches the numeric one closely.
-cv::Mat smooth_image(int w, int h) {
-  cv::Mat image(h, w, CV_32FC1);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      image.at<float>(y, x) = static_cast<float>(120.0 + 60.0 * std::sin(0.02 * x + 0.3) * std::cos(0.017 * y) +
-                                                 30.0 * std::sin(0.011 * (x + y)));
-  return image;
-}
-
 TEST(IlluminatorFactor, ResidualJacobiansWithTheLampMatchNumericDifferentiation) {
-  const ImagePyramid target(smooth_image(320, 240), 1);
+  const ImagePyramid target(testing::smooth_image(320, 240), 1);
   const Eigen::Vector2d pixel(140.0, 100.0);
   const Eigen::Vector3d n_h = tilted_normal(kCamera.unproject(pixel));
-  const double a_h = 0.1, b_h = 3.0, a_t = -0.05, b_t = 5.0, rho = 0.5, intensity = 90.0;
+  const double intensity = 90.0;
+  const testing::ResidualArguments at{kHost, kTarget, 0.1, 3.0, -0.05, 5.0, 0.5};
   const LampGeometry lamp{true, Eigen::Vector3d(0.03, 0.05, 0.01), 4.8};
-  auto residual = [&](const SE3& Th, const SE3& Tt, double ah, double bh, double at, double bt, double r) {
-    ResidualJacobian out;
-    const SE3 T = Tt * Th.inverse();
-    EXPECT_TRUE(linearize_residual(kCamera, target.level(0), T, T, pixel, r, intensity,
-                                   affine_transfer(ah, bh, 1.0, at, bt, 1.3), out, lamp, &n_h));
-    return out.residual;
+  auto linearize = [&](const testing::ResidualArguments& x, ResidualJacobian& out, const LampGeometry& l) {
+    const SE3 T = x.T_target_world * x.T_host_world.inverse();
+    return linearize_residual(kCamera, target.level(0), T, T, pixel, x.rho, intensity,
+                              affine_transfer(x.a_h, x.b_h, 1.0, x.a_t, x.b_t, 1.3), out, l, &n_h);
   };
   ResidualJacobian J;
-  const SE3 T_th = kTarget * kHost.inverse();
-  ASSERT_TRUE(linearize_residual(kCamera, target.level(0), T_th, T_th, pixel, rho, intensity,
-                                 affine_transfer(a_h, b_h, 1.0, a_t, b_t, 1.3), J, lamp, &n_h));
-  auto expect_close = [](double analytic, double numeric, const char* what, int i) {
-    EXPECT_NEAR(analytic, numeric, 0.03 * std::abs(numeric) + 0.05) << what << " " << i;
-  };
-  const double eps = 1e-3;
-  for (int i = 0; i < 6; ++i) {
-    Vector6d d = Vector6d::Zero();
-    d[i] = eps;
-    expect_close(J.d_host[i],
-                 (residual(SE3::exp(d) * kHost, kTarget, a_h, b_h, a_t, b_t, rho) -
-                  residual(SE3::exp(-d) * kHost, kTarget, a_h, b_h, a_t, b_t, rho)) / (2 * eps),
-                 "host pose", i);
-    expect_close(J.d_target[i],
-                 (residual(kHost, SE3::exp(d) * kTarget, a_h, b_h, a_t, b_t, rho) -
-                  residual(kHost, SE3::exp(-d) * kTarget, a_h, b_h, a_t, b_t, rho)) / (2 * eps),
-                 "target pose", i);
-  }
-  const double e2 = 1e-4;
-  expect_close(J.d_host[6],
-               (residual(kHost, kTarget, a_h + e2, b_h, a_t, b_t, rho) - residual(kHost, kTarget, a_h - e2, b_h, a_t, b_t, rho)) /
-                   (2 * e2),
-               "host a", 6);
-  expect_close(J.d_host[7],
-               (residual(kHost, kTarget, a_h, b_h + e2, a_t, b_t, rho) - residual(kHost, kTarget, a_h, b_h - e2, a_t, b_t, rho)) /
-                   (2 * e2),
-               "host b", 7);
-  expect_close(J.d_target[6],
-               (residual(kHost, kTarget, a_h, b_h, a_t + e2, b_t, rho) - residual(kHost, kTarget, a_h, b_h, a_t - e2, b_t, rho)) /
-                   (2 * e2),
-               "target a", 6);
-  expect_close(J.d_rho,
-               (residual(kHost, kTarget, a_h, b_h, a_t, b_t, rho + eps) - residual(kHost, kTarget, a_h, b_h, a_t, b_t, rho - eps)) /
-                   (2 * eps),
-               "inverse depth", 0);
+  ASSERT_TRUE(linearize(at, J, lamp));
+  testing::expect_jacobians_match_central_differences(
+      J,
+      [&](const testing::ResidualArguments& x) {
+        ResidualJacobian out;
+        EXPECT_TRUE(linearize(x, out, lamp));
+        return out.residual;
+      },
+      at);
   // The lamp's share of the inverse-depth derivative is not negligible here (an approach).
   ResidualJacobian plain;
-  ASSERT_TRUE(linearize_residual(kCamera, target.level(0), T_th, T_th, pixel, rho, intensity,
-                                 affine_transfer(a_h, b_h, 1.0, a_t, b_t, 1.3), plain));
+  ASSERT_TRUE(linearize(at, plain, LampGeometry{}));
   EXPECT_GT(std::abs(J.d_rho - plain.d_rho), 1.0);
 }
 

@@ -149,8 +149,23 @@ TEST(OdometrySequence, Parking100WattsWithinOnePercentOfPathLength) {
   expect_within_one_percent(run_simulated(sim::SceneKind::Parking, 100.0, 300, false));
 }
 
-// Known misses (see the README's odometry figures): the room and the outdoor street drift in
-// pitch (about 1.3-1.6 % and ~10 % of the path); run with --gtest_also_run_disabled_tests.
+// The vehicle sequences of `bench` (forward motion at 4 and 2.5 m/s). Before the initialiser
+// kept several starting hypotheses from its snap on, both settled on a wrong structure (a pitch
+// error of a degree or more, the translation 20-30 degrees off) and ended at 8-13 % of the path.
+// Measured with this build (supersampling 1, machine loaded): outdoor 0.71 %, parking 0.10 %
+// (ctest -R OdometrySequence.Vehicle); the bound is the 1 %.
+TEST(OdometrySequence, VehicleOutdoor50WattsWithinOnePercentOfPathLength) {
+  expect_within_one_percent(run_simulated(sim::SceneKind::Outdoor, 50.0, 300, false,
+                                          [](SimulatorOptions& o) { o.motion = sim::MotionKind::Vehicle; }));
+}
+TEST(OdometrySequence, VehicleParking50WattsWithinOnePercentOfPathLength) {
+  expect_within_one_percent(run_simulated(sim::SceneKind::Parking, 50.0, 300, false,
+                                          [](SimulatorOptions& o) { o.motion = sim::MotionKind::Vehicle; }));
+}
+
+// Known misses (see the README's odometry figures): the room drifts in pitch early on (about
+// 1.2-1.6 % of the path at 20 and 100 W), and the outdoor street walked by hand (not a `bench`
+// sequence) is at 12.7 %; run with --gtest_also_run_disabled_tests.
 TEST(OdometrySequence, DISABLED_RoomWithinOnePercentOfPathLength) {
   expect_within_one_percent(run_simulated(sim::SceneKind::Room, 50.0, 300, true));
 }
@@ -203,7 +218,9 @@ TEST(OdometrySequence, LossStartsANewSegment) {
 }
 
 // For investigating one case by hand: NIRSLAM_ODOMETRY_VARIANT=room|tunnel|outdoor|parking with
-// any of corr, nonoise, fixed, novig, ambient, robot, vehicle; NIRSLAM_ODOMETRY_POWER, _FRAMES.
+// any of corr, nonoise, fixed, novig, ambient, robot, vehicle, handheld, flat (texture filtered
+// to a fixed footprint on the surface, no mirror term), ss2 (2x2 supersampling as `bench`);
+// NIRSLAM_ODOMETRY_POWER, _FRAMES.
 TEST(OdometrySequence, DISABLED_Variant) {
   const char* v = std::getenv("NIRSLAM_ODOMETRY_VARIANT");
   const std::string variant = v ? v : "";
@@ -223,6 +240,9 @@ TEST(OdometrySequence, DISABLED_Variant) {
       o.ambient_irradiance = 5.0;
     }
     if (variant.find("vehicle") != std::string::npos) o.motion = sim::MotionKind::Vehicle;
+    if (variant.find("handheld") != std::string::npos) o.motion = sim::MotionKind::Handheld;
+    if (variant.find("flat") != std::string::npos) o.texture_filtering = TextureFiltering::DistanceIndependent;
+    if (variant.find("ss2") != std::string::npos) o.supersampling = 2;
   });
 }
 

@@ -146,6 +146,11 @@ public:
 
 private:
   struct Linearization;
+  // One pass over the residuals of the points hosted in `only_hosts` (all when null) at the
+  // current state: each residual's clamped energy and inlier flag, the residual rms, and with
+  // `lin` the points' Schur blocks and the per-pair blocks. Returns the residual energy plus the
+  // points' inverse-depth priors. Shared by energy() and linearize().
+  double evaluate_residuals(const std::vector<int>* only_hosts, Linearization* lin);
   // Builds the frame system (H, b) with points Schur-complemented; frames in window order.
   // Returns the energy at the current state (of the hosts included; priors when included).
   double linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool schur, double lambda,

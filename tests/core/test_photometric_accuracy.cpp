@@ -27,6 +27,13 @@ struct AccuracyRun {
   double in_range_max_grey = 0.0;
   double gamma_free_mean_grey = 0.0;  // response error after bringing the truth to the estimate's gamma gauge
   double gamma_free_max_grey = 0.0;
+  // Over the observed range after the best irradiance scale s (s G_est against G_true): when the
+  // frames never reach saturation, the data fix G only up to this scale inside the observed range
+  // (G(255) = 255 lies outside it; test_photometric_diagnostics.cpp, variant G, fits exact data
+  // with residual 0.00 and a 6-grey-level scale error), so this is what the data determine.
+  double scale_free_mean_grey = 0.0;
+  double scale_free_max_grey = 0.0;
+  double irradiance_scale = 1.0;
   std::shared_ptr<const PhotometricEstimate> estimate;
 };
 
@@ -93,6 +100,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* probe = std::getenv("NIRSLAM_PHOTOMETRIC_PROBE")) options.backend.multi_start_probe_iterations = std::atoi(probe);
   if (const char* gauge = std::getenv("NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT")) options.backend.gamma_gauge_weight = std::atof(gauge);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_FREE_VIGNETTE") != nullptr) options.backend.vignette_monotonic = false;
+  if (const char* ncc = std::getenv("NIRSLAM_PHOTOMETRIC_MIN_NCC")) options.tracker.min_reference_ncc = std::atof(ncc);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
     options.backend.initial_response = sim_options.response;
     options.backend.initial_vignette = sim_options.vignette;
@@ -150,6 +158,20 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
       out.in_range_max_grey = std::max(out.in_range_max_grey, d);
     }
     if (n > 0) out.in_range_mean_grey /= n;
+    {
+      const int lo = static_cast<int>(std::ceil(out.estimate->grey_low)), hi = static_cast<int>(out.estimate->grey_high);
+      double num = 0.0, den = 0.0;  // least-squares s
+      for (int i = lo; i <= hi; ++i) {
+        num += estimated[static_cast<std::size_t>(i)] * expected[static_cast<std::size_t>(i)];
+        den += estimated[static_cast<std::size_t>(i)] * estimated[static_cast<std::size_t>(i)];
+      }
+      out.irradiance_scale = den > 0.0 ? num / den : 1.0;
+      for (int i = lo; i <= hi; ++i) {
+        const double d = std::abs(out.irradiance_scale * estimated[static_cast<std::size_t>(i)] - expected[static_cast<std::size_t>(i)]);
+        out.scale_free_mean_grey += d / std::max(hi - lo + 1, 1);
+        out.scale_free_max_grey = std::max(out.scale_free_max_grey, d);
+      }
+    }
     // Without known exposures the gamma is a normalisation (photometric_backend.hpp): the truth's
     // G^g with g matching the two curves at the gauge grey level is what the data determine.
     const double y = 128.0 / 255.0;
@@ -170,6 +192,8 @@ void print(const char* label, const AccuracyRun& r) {
               r.estimate->grey_high, r.in_range_mean_grey, r.in_range_max_grey, r.errors.vignette_mean,
               r.errors.vignette_max, r.errors.exposure_mean_ms, r.errors.exposure_max_ms,
               100.0 * r.errors.exposure_median_relative, r.estimate->status.c_str());
+  std::printf("%-16s observed range modulo the irradiance scale (s = %.3f): %5.2f / %6.2f gl\n", label, r.irradiance_scale,
+              r.scale_free_mean_grey, r.scale_free_max_grey);
   if (r.estimate->ambiguity == AmbiguityResolution::Normalisation)
     std::printf("%-16s response modulo gamma %5.2f / %6.2f gl (%s)\n", label, r.gamma_free_mean_grey,
                 r.gamma_free_max_grey, r.estimate->ambiguity_detail.c_str());

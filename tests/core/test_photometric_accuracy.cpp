@@ -101,6 +101,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* gauge = std::getenv("NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT")) options.backend.gamma_gauge_weight = std::atof(gauge);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_FREE_VIGNETTE") != nullptr) options.backend.vignette_monotonic = false;
   if (const char* ncc = std::getenv("NIRSLAM_PHOTOMETRIC_MIN_NCC")) options.tracker.min_reference_ncc = std::atof(ncc);
+  if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_CURVATURE")) options.backend.log_curvature_weight = std::atof(w);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
     options.backend.initial_response = sim_options.response;
     options.backend.initial_vignette = sim_options.vignette;
@@ -206,18 +207,19 @@ TEST(PhotometricAccuracy, RoomConstantRadianceKnownExposures) {
   EXPECT_LT(r.mean_grey, 0.5);
   EXPECT_GT(r.exposure_span, 1.5);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::KnownExposures);
-  // Measured (distance-independent texture; before it, with the pixel-footprint texture: 2.96 /
-  // 15.3 over all levels, 1.69 / 2.41 observed, vignette 0.0215, exposure median 3.0 %): response
-  // 2.71 / 15.45 grey levels over all 256 levels, 0.84 / 1.24 over the observed 18..144 (above 144
-  // it is extrapolation: auto exposure keeps the frames mid-grey), vignette 0.0187 / 0.076,
-  // exposure median 0.98 %. The exposure median meets the issue's target (< 2 %) and is asserted
-  // as such; the response over all levels and the vignette do not (< 2 and < 0.005) and are pinned
-  // with modest slack.
+  // Measured (this test's printout; the back end's G-domain Jacobian and log_curvature_weight 3,
+  // photometric_backend.hpp): response 2.79 / 15.77 grey levels over all 256 levels, 0.67 / 0.99
+  // over the observed 18..144, 0.35 / 0.97 there modulo the irradiance scale (s = 0.979; above
+  // 144 it is extrapolation: auto exposure keeps the frames mid-grey), vignette 0.0070 / 0.059
+  // (0.0187 / 0.076 with the old Jacobian), exposure median 1.13 %. The exposure median meets the
+  // issue's target (< 2 %) and is asserted as such; the response over all levels and the vignette
+  // do not (< 2 and < 0.005) and are pinned with modest slack.
   EXPECT_LT(r.errors.response_mean_grey, 3.5);
   EXPECT_LT(r.errors.response_max_grey, 20.0);
   EXPECT_LT(r.in_range_mean_grey, 1.5);
   EXPECT_LT(r.in_range_max_grey, 3.0);
-  EXPECT_LT(r.errors.vignette_mean, 0.025);
+  EXPECT_LT(r.scale_free_mean_grey, 1.0);
+  EXPECT_LT(r.errors.vignette_mean, 0.0105);
   EXPECT_LT(r.errors.exposure_median_relative, 0.02);
 }
 
@@ -226,10 +228,11 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
   print("room log normalised", r);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::Normalisation);
   EXPECT_TRUE(std::isfinite(r.errors.response_mean_grey));
-  // The result says how (un)determined the gamma is. Measured: response 13.5-14.5 / 35-36 grey
-  // levels, 14.6-14.9 after bringing the truth to the estimate's gamma, exposure median 136-164 %
-  // (the exposures inherit the gamma error as e^g): far from the issue's targets, which need
-  // reported exposures or a power-sweep response here. With the gauge penalty of
+  // The result says how (un)determined the gamma is. Measured: response 16.1 / 61.2 grey levels,
+  // 16.5 after bringing the truth to the estimate's gamma, exposure median 39 % (the exposures
+  // inherit the gamma error as e^g; before the back end's G-domain Jacobian 13.5-14.5, 14.6-14.9
+  // and 136-164 %): far from the issue's targets, which need reported exposures or a power-sweep
+  // response here. With the gauge penalty of
   // photometric_backend.hpp (NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT=1e3) it is worse: 45 grey levels.
   EXPECT_NE(r.estimate->ambiguity_detail.find("gamma NOT determined"), std::string::npos) << r.estimate->ambiguity_detail;
   EXPECT_TRUE(std::isfinite(r.gamma_free_mean_grey));
@@ -237,9 +240,10 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
 }
 
 // Issue 8, calibration side: under the co-located lamp the (d_ref/d)^2 (P/P_ref) factor from the
-// true distances. Measured on room/log (known exposures): exposure median 67.7 % -> 13.1 %,
-// residual 4.5 -> 2.6 grey levels; the response (18-24 grey levels) and the halo factor (0.13
-// against V B) stay far from the issue's targets: see the co-lit table in the report.
+// true distances. Measured on room/log (known exposures, this test's printout): exposure median
+// 117.8 % -> 17.3 %, halo factor 0.139 -> 0.105 against V B (with the back end's old Jacobian
+// 0.305 -> 0.125: the plain run gained most from the new one); the response (6-14 grey levels)
+// and the halo factor stay far from the issue's targets: see the co-lit table in the README.
 TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   const AccuracyRun plain = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, false);
   const AccuracyRun lit = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, true);
@@ -247,7 +251,7 @@ TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   print("room co-lit+d^2", lit);
   EXPECT_LT(lit.errors.exposure_median_relative, 0.2);
   EXPECT_LT(lit.errors.exposure_median_relative, 0.3 * plain.errors.exposure_median_relative);
-  EXPECT_LT(lit.errors.vignette_mean, 0.6 * plain.errors.vignette_mean);
+  EXPECT_LT(lit.errors.vignette_mean, 0.85 * plain.errors.vignette_mean);
   EXPECT_LT(lit.estimate->residual_rms, 0.75 * plain.estimate->residual_rms);
 }
 

@@ -55,6 +55,7 @@ void fit(const char* label, const std::vector<PhotometricKeyframe>& keyframes, c
   b.max_points = max_points;
   b.gradient_mu = mu;
   b.max_stored_keyframes = 400;
+  if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_CURVATURE")) b.log_curvature_weight = std::atof(w);
   PhotometricBackend backend(b);
   for (const auto& k : keyframes) backend.add_keyframe(k);
   const BackendStep s = backend.optimise(60, true);
@@ -85,6 +86,9 @@ void truth_residuals(const std::vector<PhotometricKeyframe>& keyframes, const Si
     return (1 - t) * G[static_cast<std::size_t>(i)] + t * G[static_cast<std::size_t>(i) + 1];
   };
   std::map<std::pair<std::int64_t, int>, std::vector<std::pair<double, double>>> points;  // -> (grey, log irr)
+  std::map<std::pair<std::int64_t, int>, std::vector<double>> radii;
+  std::array<double, 10> rsum{};
+  std::array<int, 10> rn{};
   for (const auto& kf : keyframes)
     for (const auto& ob : kf.observations)
       for (int k = 0; k < kBackendPixels; ++k) {
@@ -93,6 +97,7 @@ void truth_residuals(const std::vector<PhotometricKeyframe>& keyframes, const Si
         const Eigen::Vector2d p = ob.position + backend_pixel_offset(k);
         const double V = o.vignette(VignetteModel::radius(p.x(), p.y(), kf.width, kf.height));
         points[{ob.track_id, k}].emplace_back(grey, std::log(g_of(grey) / (kf.exposure * V)));
+        radii[{ob.track_id, k}].push_back(VignetteModel::radius(p.x(), p.y(), kf.width, kf.height));
       }
   std::array<double, 8> sum{}, sum2{};
   std::array<int, 8> n{};
@@ -102,6 +107,12 @@ void truth_residuals(const std::vector<PhotometricKeyframe>& keyframes, const Si
     for (const auto& [g, v] : list) l.push_back(v);
     std::nth_element(l.begin(), l.begin() + static_cast<std::ptrdiff_t>(l.size() / 2), l.end());
     const double median = l[l.size() / 2];
+    const std::vector<double>& rr = radii[key];
+    for (std::size_t j = 0; j < list.size(); ++j) {
+      const auto b = static_cast<std::size_t>(std::min(9, static_cast<int>(rr[j] * 10)));
+      rsum[b] += std::clamp(list[j].second - median, -0.5, 0.5);
+      ++rn[b];
+    }
     for (const auto& [g, v] : list) {
       const auto b = static_cast<std::size_t>(std::min(7, static_cast<int>(g / 32)));
       const double d = std::clamp(v - median, -0.5, 0.5);
@@ -113,6 +124,9 @@ void truth_residuals(const std::vector<PhotometricKeyframe>& keyframes, const Si
   std::printf("  truth residual by grey/32, mean %% (rms %%):");
   for (std::size_t b = 0; b < 8; ++b)
     if (n[b] > 0) std::printf(" %+.2f (%.1f)", 100.0 * sum[b] / n[b], 100.0 * std::sqrt(sum2[b] / n[b]));
+  std::printf("\n  truth residual by radius/0.1, mean %% (count):");
+  for (std::size_t b = 0; b < 10; ++b)
+    if (rn[b] > 0) std::printf(" %+.2f (%d)", 100.0 * rsum[b] / rn[b], rn[b]);
   std::printf("\n");
 }
 

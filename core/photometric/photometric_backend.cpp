@@ -540,24 +540,31 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     }
     return u * u;
   };
-  // The curvature of log G along the grey scale (see log_curvature_weight in the header): second
-  // differences of log X(I) = 2 log u(I) at I = 8, 16, .., 248 above the observed range's top
-  // (less three steps), and their gradients in c
+  // The curvature of log G over log I (see log_curvature_weight in the header): second
+  // differences of log X(I) = 2 log u(I) at grey levels evenly spaced in log I from a little
+  // below the observed range's top to 255, and their gradients in c
   // (d log X / dc = (2 / u) du/dc, du/dc = -h(u) / f'(u)).
   // With known exposures only: without them gamma is free as well, and the result says it is
   // pinned only by the basis and the prior (online_calibration.hpp).
-  const double curvature_weight = any_fixed ? options_.log_curvature_weight * nobs : 0.0;
+  // Scaled by the part of the grey scale above the observed range: where the data reach up to
+  // saturation they fix the scale themselves and the prior must not bend their curve.
+  const double curvature_weight =
+      any_fixed ? options_.log_curvature_weight * nobs * std::max(0.0, 255.0 - step.grey_high) / 255.0 : 0.0;
   constexpr int kCurvatureLevels = 31;
   // Only from a little below the top of the observed range on: inside it the data fix the shape
   // (and log G is curved there by nature: log X ~ log I near black for every curve).
-  const int curvature_first = std::clamp(static_cast<int>(std::floor((step.grey_high - 24.0) / 8.0)) - 1, 0, kCurvatureLevels - 3);
+  // Grey levels evenly spaced in log I (5 % apart, the top at 255): a straight log G over log I
+  // is a constant gamma, which the linear and gamma-like curves are.
+  const auto curvature_grey = [](int j) { return 255.0 * std::exp(-0.05 * (kCurvatureLevels - 1 - j)); };
+  int curvature_first = 0;
+  while (curvature_first < kCurvatureLevels - 3 && curvature_grey(curvature_first) < step.grey_high - 24.0) ++curvature_first;
   const auto log_curvature = [&](const Eigen::Vector4d& c, Eigen::Matrix<double, kCurvatureLevels - 2, 1>& rho,
                                  Eigen::Matrix<double, kCurvatureLevels - 2, 4>* jacobian) {
     const InverseResponse inverse(c);
     Eigen::Matrix<double, kCurvatureLevels, 1> log_x;
     Eigen::Matrix<double, kCurvatureLevels, 4> d_log_x;
     for (int j = 0; j < kCurvatureLevels; ++j) {
-      const double u = std::max(inverse.sqrt_irradiance(8.0 * (j + 1) / 255.0), 1e-6);
+      const double u = std::max(inverse.sqrt_irradiance(curvature_grey(j) / 255.0), 1e-6);
       log_x[j] = 2.0 * std::log(u);
       if (jacobian != nullptr) {
         Eigen::Vector4d h, dh;

@@ -137,6 +137,10 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   second.run_backend = false;
   second.backend.initial_response = out.estimate->response;
   second.backend.initial_vignette = out.estimate->vignette;
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_WITH_TRUTH") != nullptr) {  // diagnosis: the front end alone
+    second.backend.initial_response = truth.response;
+    second.backend.initial_vignette = truth.vignette;
+  }
   OnlinePhotometricCalibration exposures(second);
   Simulator sim(sim_options);
   while (auto f = sim.next(light_factor)) {
@@ -208,9 +212,9 @@ TEST(PhotometricAccuracy, RoomConstantRadianceKnownExposures) {
   EXPECT_GT(r.exposure_span, 1.5);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::KnownExposures);
   // Measured (this test's printout; the back end's G-domain Jacobian and log_curvature_weight 3,
-  // photometric_backend.hpp): response 2.79 / 15.77 grey levels over all 256 levels, 0.67 / 0.99
-  // over the observed 18..144, 0.35 / 0.97 there modulo the irradiance scale (s = 0.979; above
-  // 144 it is extrapolation: auto exposure keeps the frames mid-grey), vignette 0.0070 / 0.059
+  // photometric_backend.hpp): response 2.79 / 15.78 grey levels over all 256 levels, 0.67 / 0.99
+  // over the observed 18..144, 0.34 / 0.96 there modulo the irradiance scale (s = 0.980; above
+  // 144 it is extrapolation: auto exposure keeps the frames mid-grey), vignette 0.0069 / 0.059
   // (0.0187 / 0.076 with the old Jacobian), exposure median 1.13 %. The exposure median meets the
   // issue's target (< 2 %) and is asserted as such; the response over all levels and the vignette
   // do not (< 2 and < 0.005) and are pinned with modest slack.
@@ -240,9 +244,9 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
 }
 
 // Issue 8, calibration side: under the co-located lamp the (d_ref/d)^2 (P/P_ref) factor from the
-// true distances. Measured on room/log (known exposures, this test's printout): exposure median
-// 117.8 % -> 17.3 %, halo factor 0.139 -> 0.105 against V B (with the back end's old Jacobian
-// 0.305 -> 0.125: the plain run gained most from the new one); the response (6-14 grey levels)
+// true distances. Measured on room/log (known exposures, CoLitTable's printout): exposure median
+// 73.4 % -> 16.7 %, halo factor 0.141 -> 0.105 against V B (with the back end's old Jacobian
+// 0.305 -> 0.125: the plain run gained most from the new one); the response (12-20 grey levels)
 // and the halo factor stay far from the issue's targets: see the co-lit table in the README.
 TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   const AccuracyRun plain = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, false);
@@ -270,14 +274,25 @@ TEST(PhotometricAccuracy, CoLitTable) {
 
 // The full table: 4 scenes x 4 response presets (NIRSLAM_PHOTOMETRIC_TABLE=1 to run it).
 TEST(PhotometricAccuracy, Table) {
+  // NIRSLAM_PHOTOMETRIC_ROWS=outdoor,tunnel: only the rows whose label contains one of them.
   if (std::getenv("NIRSLAM_PHOTOMETRIC_TABLE") == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_TABLE=1";
   const std::string which = std::getenv("NIRSLAM_PHOTOMETRIC_TABLE");
   if (which == "colit") GTEST_SKIP() << "the co-lit table is CoLitTable";
   const bool known = which != "normalised";
   for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
     for (const ResponsePreset preset : {ResponsePreset::Linear, ResponsePreset::Gamma, ResponsePreset::Log, ResponsePreset::Filmic}) {
-      const AccuracyRun r = run(constant_radiance(scene, preset, 150), known);
       const std::string label = std::string(sim::to_string(scene)) + " " + std::string(to_string(preset));
+      if (const char* rows = std::getenv("NIRSLAM_PHOTOMETRIC_ROWS")) {
+        bool wanted = false;
+        std::string list = rows;
+        for (std::size_t a = 0; a <= list.size();) {
+          const std::size_t b = std::min(list.find(',', a), list.size());
+          wanted |= b > a && label.find(list.substr(a, b - a)) != std::string::npos;
+          a = b + 1;
+        }
+        if (!wanted) continue;
+      }
+      const AccuracyRun r = run(constant_radiance(scene, preset, 150), known);
       print(label.c_str(), r);
     }
 }

@@ -137,13 +137,15 @@ struct PhotometricBackendOptions {
   double gradient_mu = 25.0;         // mu of Eq. 2-5, grey levels^2 per px^2
   double huber_k = 2.0;               // Huber width in robust standard deviations of the residual
   double coefficient_prior_weight = 1e-4;  // per observation, on (c - c_initial), in weighted-residual units
-  // Per observation, on the squared second differences of log f^-1 at the grey levels 8, 16, ..,
-  // 248 from about 24 below the top of the observed range (BackendStep::grey_high) on. Inside the observed grey range the data fix G = f^-1 only up to a scale when no frame
+  // Per observation, on the squared second differences of log f^-1 over log I (grey levels 5 %
+  // apart, up to 255) from about 24 grey levels below the top of the observed range
+  // (BackendStep::grey_high) on: a straight line there is a constant gamma; the weight is scaled
+  // by (255 - grey_high) / 255, the part of the scale the data leave open. Inside the observed grey range the data fix G = f^-1 only up to a scale when no frame
   // comes near saturation (G(255) = 255 lies outside; see test_photometric_diagnostics.cpp): the
   // basis then reaches 255 with any bend, and the smoothest continuation of log G is the
   // documented choice among the curves the data cannot tell apart. Used only when some keyframe
   // exposure is known (held); without, the gamma is free too and stays with the basis and prior.
-  double log_curvature_weight = 3.0;  // measured: room/log irradiance scale 0.98 (3.2 with 0); see README
+  double log_curvature_weight = 3.0;  // measured: room/log irradiance scale 0.98 (3.2 with 0); README table
   double min_exposure_ratio = 1.15;   // max/min exposure in the window below which f is not estimated
   double min_radius_span = 0.1;       // V is estimated when min_points / 2 points span this range of radii
   bool vignette_monotonic = true;     // every accepted V falls (weakly) from the centre to the rim

@@ -540,9 +540,53 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     }
     return u * u;
   };
+  // The curvature of log G over log I (see log_curvature_weight in the header): second
+  // differences of log X(I) = 2 log u(I) at grey levels evenly spaced in log I from a little
+  // below the observed range's top to 255, and their gradients in c
+  // (d log X / dc = (2 / u) du/dc, du/dc = -h(u) / f'(u)).
+  // With known exposures only: without them gamma is free as well, and the result says it is
+  // pinned only by the basis and the prior (online_calibration.hpp).
+  // Scaled by the part of the grey scale above the observed range: where the data reach up to
+  // saturation they fix the scale themselves and the prior must not bend their curve.
+  const double curvature_weight =
+      any_fixed ? options_.log_curvature_weight * nobs * std::max(0.0, 255.0 - step.grey_high) / 255.0 : 0.0;
+  constexpr int kCurvatureLevels = 31;
+  // Only from a little below the top of the observed range on: inside it the data fix the shape
+  // (and log G is curved there by nature: log X ~ log I near black for every curve).
+  // Grey levels evenly spaced in log I (5 % apart, the top at 255): a straight log G over log I
+  // is a constant gamma, which the linear and gamma-like curves are.
+  const auto curvature_grey = [](int j) { return 255.0 * std::exp(-0.05 * (kCurvatureLevels - 1 - j)); };
+  int curvature_first = 0;
+  while (curvature_first < kCurvatureLevels - 3 && curvature_grey(curvature_first) < step.grey_high - 24.0) ++curvature_first;
+  const auto log_curvature = [&](const Eigen::Vector4d& c, Eigen::Matrix<double, kCurvatureLevels - 2, 1>& rho,
+                                 Eigen::Matrix<double, kCurvatureLevels - 2, 4>* jacobian) {
+    const InverseResponse inverse(c);
+    Eigen::Matrix<double, kCurvatureLevels, 1> log_x;
+    Eigen::Matrix<double, kCurvatureLevels, 4> d_log_x;
+    for (int j = 0; j < kCurvatureLevels; ++j) {
+      const double u = std::max(inverse.sqrt_irradiance(curvature_grey(j) / 255.0), 1e-6);
+      log_x[j] = 2.0 * std::log(u);
+      if (jacobian != nullptr) {
+        Eigen::Vector4d h, dh;
+        response_basis_in_sqrt_irradiance(u, h, dh);
+        d_log_x.row(j) = ((2.0 / u) * (-h / std::max(1.0 + c.dot(dh), 1e-9))).transpose();
+      }
+    }
+    rho.setZero();
+    if (jacobian != nullptr) jacobian->setZero();
+    for (int m = curvature_first; m + 2 < kCurvatureLevels; ++m) {
+      rho[m] = log_x[m + 2] - 2.0 * log_x[m + 1] + log_x[m];
+      if (jacobian != nullptr) jacobian->row(m) = d_log_x.row(m + 2) - 2.0 * d_log_x.row(m + 1) + d_log_x.row(m);
+    }
+  };
   const auto regulariser = [&](const Eigen::Vector4d& c) {
     if (!step.response_estimated) return 0.0;
     double penalty = prior_weight * (c - c_prior).squaredNorm();
+    if (curvature_weight > 0.0) {
+      Eigen::Matrix<double, kCurvatureLevels - 2, 1> rho;
+      log_curvature(c, rho, nullptr);
+      penalty += curvature_weight * rho.squaredNorm();
+    }
     if (gamma_gauge) {
       const double miss = gauge(c, nullptr) - gauge_target;
       penalty += gauge_weight * miss * miss;
@@ -606,15 +650,21 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
             jg.head<4>() = (-255.0 * 2.0 * u / (slope * eV)) * h;
           else
             jg.head<4>().setZero();
+          // dV and de: derivatives of the grey-domain residual s = (G - e V L) k that the cost
+          // holds (k frozen per linearisation), in r units: ds/dV / (eVk) = -L / V, not dr/dV =
+          // -G / (e V^2) of r = G / (eV) - L. The two agree only where G = e V L; with the observed
+          // (noisy) G in the Jacobian, the fixed point of the iteration is not the cost's minimum
+          // but biased by E[G (G - e V L)] = var(G): measured on room/log observations (every 3rd
+          // frame, response held; test_photometric_diagnostics.cpp, variant A), V came out too weak.
           if (step.vignette_estimated) {
-            const double dV = -G / (eV * V);
+            const double dV = -L / V;
             jg[4] = dV * r2;
             jg[5] = dV * r2 * r2;
             jg[6] = dV * r2 * r2 * r2;
           } else {
             jg.tail<3>().setZero();
           }
-          const double je = -G / (eV * e);
+          const double je = -L / e;
           H.topLeftCorner<7, 7>().noalias() += w * jg * jg.transpose();
           b.head<7>() += (w * r) * jg;
           const int fe = free_index[static_cast<std::size_t>(o.keyframe)];
@@ -637,6 +687,13 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
       if (step.response_estimated) {
         H.topLeftCorner<4, 4>().diagonal().array() += prior_weight;
         b.head<4>() += prior_weight * (st.c - c_prior);
+        if (curvature_weight > 0.0) {
+          Eigen::Matrix<double, kCurvatureLevels - 2, 1> rho;
+          Eigen::Matrix<double, kCurvatureLevels - 2, 4> J;
+          log_curvature(st.c, rho, &J);
+          H.topLeftCorner<4, 4>().noalias() += curvature_weight * J.transpose() * J;
+          b.head<4>() += curvature_weight * J.transpose() * rho;
+        }
         if (gamma_gauge) {
           Eigen::Vector4d dX;
           const double miss = gauge(st.c, &dX) - gauge_target;

@@ -29,6 +29,14 @@ inline bool fits(const cv::Mat& image, const Eigen::Vector2d& p, int radius) {
          p.x() + radius < image.cols - 1 && p.y() + radius < image.rows - 1;
 }
 
+// Normalised cross-correlation of two patches (1: equal up to an affine brightness change).
+double normalised_cross_correlation(const PatchSamples& a, const PatchSamples& b) {
+  const Eigen::ArrayXf da = a.array() - a.mean();
+  const Eigen::ArrayXf db = b.array() - b.mean();
+  const double denominator = std::sqrt(static_cast<double>(da.square().sum()) * static_cast<double>(db.square().sum()));
+  return denominator > 0.0 ? static_cast<double>((da * db).sum()) / denominator : 0.0;
+}
+
 constexpr int kTemplateSide = kPatchSide + 2;  // one extra pixel each side for the gradient
 using TemplateSamples = Eigen::Matrix<float, kTemplateSide, kTemplateSide, Eigen::RowMajor>;
 
@@ -194,6 +202,10 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
       observation.age = old.age + 1;
       observation.brightness_gain = forward->brightness_gain;
       if (!sample_patch(pyramid[0], observation.position, observation.samples)) continue;
+      observation.reference = old.reference;
+      if (options_.min_reference_ncc > 0.0 &&
+          normalised_cross_correlation(observation.samples, observation.reference) < options_.min_reference_ncc)
+        continue;
       next.tracks.push_back(observation);
     }
     next.lost_tracks = static_cast<int>(current_.tracks.size() - next.tracks.size());
@@ -239,6 +251,7 @@ void PhotometricTracker::detect(const std::vector<cv::Mat>& pyramid) {
     int& count = bucket_counts_[bucket(observation.position)];
     if (count >= per_cell) continue;
     if (!sample_patch(image, observation.position, observation.samples)) continue;
+    observation.reference = observation.samples;
     observation.id = next_id_++;
     ++count;
     current_.tracks.push_back(observation);

@@ -27,6 +27,13 @@ struct AccuracyRun {
   double in_range_max_grey = 0.0;
   double gamma_free_mean_grey = 0.0;  // response error after bringing the truth to the estimate's gamma gauge
   double gamma_free_max_grey = 0.0;
+  // Over the observed range after the best irradiance scale s (s G_est against G_true): when the
+  // frames never reach saturation, the data fix G only up to this scale inside the observed range
+  // (G(255) = 255 lies outside it; test_photometric_diagnostics.cpp, variant G, fits exact data
+  // with residual 0.00 and a 6-grey-level scale error), so this is what the data determine.
+  double scale_free_mean_grey = 0.0;
+  double scale_free_max_grey = 0.0;
+  double irradiance_scale = 1.0;
   std::shared_ptr<const PhotometricEstimate> estimate;
 };
 
@@ -93,6 +100,8 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* probe = std::getenv("NIRSLAM_PHOTOMETRIC_PROBE")) options.backend.multi_start_probe_iterations = std::atoi(probe);
   if (const char* gauge = std::getenv("NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT")) options.backend.gamma_gauge_weight = std::atof(gauge);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_FREE_VIGNETTE") != nullptr) options.backend.vignette_monotonic = false;
+  if (const char* ncc = std::getenv("NIRSLAM_PHOTOMETRIC_MIN_NCC")) options.tracker.min_reference_ncc = std::atof(ncc);
+  if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_CURVATURE")) options.backend.log_curvature_weight = std::atof(w);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
     options.backend.initial_response = sim_options.response;
     options.backend.initial_vignette = sim_options.vignette;
@@ -128,6 +137,10 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   second.run_backend = false;
   second.backend.initial_response = out.estimate->response;
   second.backend.initial_vignette = out.estimate->vignette;
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_WITH_TRUTH") != nullptr) {  // diagnosis: the front end alone
+    second.backend.initial_response = truth.response;
+    second.backend.initial_vignette = truth.vignette;
+  }
   OnlinePhotometricCalibration exposures(second);
   Simulator sim(sim_options);
   while (auto f = sim.next(light_factor)) {
@@ -150,6 +163,20 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
       out.in_range_max_grey = std::max(out.in_range_max_grey, d);
     }
     if (n > 0) out.in_range_mean_grey /= n;
+    {
+      const int lo = static_cast<int>(std::ceil(out.estimate->grey_low)), hi = static_cast<int>(out.estimate->grey_high);
+      double num = 0.0, den = 0.0;  // least-squares s
+      for (int i = lo; i <= hi; ++i) {
+        num += estimated[static_cast<std::size_t>(i)] * expected[static_cast<std::size_t>(i)];
+        den += estimated[static_cast<std::size_t>(i)] * estimated[static_cast<std::size_t>(i)];
+      }
+      out.irradiance_scale = den > 0.0 ? num / den : 1.0;
+      for (int i = lo; i <= hi; ++i) {
+        const double d = std::abs(out.irradiance_scale * estimated[static_cast<std::size_t>(i)] - expected[static_cast<std::size_t>(i)]);
+        out.scale_free_mean_grey += d / std::max(hi - lo + 1, 1);
+        out.scale_free_max_grey = std::max(out.scale_free_max_grey, d);
+      }
+    }
     // Without known exposures the gamma is a normalisation (photometric_backend.hpp): the truth's
     // G^g with g matching the two curves at the gauge grey level is what the data determine.
     const double y = 128.0 / 255.0;
@@ -170,6 +197,8 @@ void print(const char* label, const AccuracyRun& r) {
               r.estimate->grey_high, r.in_range_mean_grey, r.in_range_max_grey, r.errors.vignette_mean,
               r.errors.vignette_max, r.errors.exposure_mean_ms, r.errors.exposure_max_ms,
               100.0 * r.errors.exposure_median_relative, r.estimate->status.c_str());
+  std::printf("%-16s observed range modulo the irradiance scale (s = %.3f): %5.2f / %6.2f gl\n", label, r.irradiance_scale,
+              r.scale_free_mean_grey, r.scale_free_max_grey);
   if (r.estimate->ambiguity == AmbiguityResolution::Normalisation)
     std::printf("%-16s response modulo gamma %5.2f / %6.2f gl (%s)\n", label, r.gamma_free_mean_grey,
                 r.gamma_free_max_grey, r.estimate->ambiguity_detail.c_str());
@@ -182,18 +211,19 @@ TEST(PhotometricAccuracy, RoomConstantRadianceKnownExposures) {
   EXPECT_LT(r.mean_grey, 0.5);
   EXPECT_GT(r.exposure_span, 1.5);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::KnownExposures);
-  // Measured (distance-independent texture; before it, with the pixel-footprint texture: 2.96 /
-  // 15.3 over all levels, 1.69 / 2.41 observed, vignette 0.0215, exposure median 3.0 %): response
-  // 2.71 / 15.45 grey levels over all 256 levels, 0.84 / 1.24 over the observed 18..144 (above 144
-  // it is extrapolation: auto exposure keeps the frames mid-grey), vignette 0.0187 / 0.076,
-  // exposure median 0.98 %. The exposure median meets the issue's target (< 2 %) and is asserted
-  // as such; the response over all levels and the vignette do not (< 2 and < 0.005) and are pinned
-  // with modest slack.
+  // Measured (this test's printout; the back end's G-domain Jacobian and log_curvature_weight 3,
+  // photometric_backend.hpp): response 2.79 / 15.78 grey levels over all 256 levels, 0.67 / 0.99
+  // over the observed 18..144, 0.34 / 0.96 there modulo the irradiance scale (s = 0.980; above
+  // 144 it is extrapolation: auto exposure keeps the frames mid-grey), vignette 0.0069 / 0.059
+  // (0.0187 / 0.076 with the old Jacobian), exposure median 1.13 %. The exposure median meets the
+  // issue's target (< 2 %) and is asserted as such; the response over all levels and the vignette
+  // do not (< 2 and < 0.005) and are pinned with modest slack.
   EXPECT_LT(r.errors.response_mean_grey, 3.5);
   EXPECT_LT(r.errors.response_max_grey, 20.0);
   EXPECT_LT(r.in_range_mean_grey, 1.5);
   EXPECT_LT(r.in_range_max_grey, 3.0);
-  EXPECT_LT(r.errors.vignette_mean, 0.025);
+  EXPECT_LT(r.scale_free_mean_grey, 1.0);
+  EXPECT_LT(r.errors.vignette_mean, 0.0105);
   EXPECT_LT(r.errors.exposure_median_relative, 0.02);
 }
 
@@ -202,10 +232,11 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
   print("room log normalised", r);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::Normalisation);
   EXPECT_TRUE(std::isfinite(r.errors.response_mean_grey));
-  // The result says how (un)determined the gamma is. Measured: response 13.5-14.5 / 35-36 grey
-  // levels, 14.6-14.9 after bringing the truth to the estimate's gamma, exposure median 136-164 %
-  // (the exposures inherit the gamma error as e^g): far from the issue's targets, which need
-  // reported exposures or a power-sweep response here. With the gauge penalty of
+  // The result says how (un)determined the gamma is. Measured: response 16.1 / 61.2 grey levels,
+  // 16.5 after bringing the truth to the estimate's gamma, exposure median 39 % (the exposures
+  // inherit the gamma error as e^g; before the back end's G-domain Jacobian 13.5-14.5, 14.6-14.9
+  // and 136-164 %): far from the issue's targets, which need reported exposures or a power-sweep
+  // response here. With the gauge penalty of
   // photometric_backend.hpp (NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT=1e3) it is worse: 45 grey levels.
   EXPECT_NE(r.estimate->ambiguity_detail.find("gamma NOT determined"), std::string::npos) << r.estimate->ambiguity_detail;
   EXPECT_TRUE(std::isfinite(r.gamma_free_mean_grey));
@@ -213,9 +244,10 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
 }
 
 // Issue 8, calibration side: under the co-located lamp the (d_ref/d)^2 (P/P_ref) factor from the
-// true distances. Measured on room/log (known exposures): exposure median 67.7 % -> 13.1 %,
-// residual 4.5 -> 2.6 grey levels; the response (18-24 grey levels) and the halo factor (0.13
-// against V B) stay far from the issue's targets: see the co-lit table in the report.
+// true distances. Measured on room/log (known exposures, CoLitTable's printout): exposure median
+// 73.4 % -> 16.7 %, halo factor 0.141 -> 0.105 against V B (with the back end's old Jacobian
+// 0.305 -> 0.125: the plain run gained most from the new one); the response (12-20 grey levels)
+// and the halo factor stay far from the issue's targets: see the co-lit table in the README.
 TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   const AccuracyRun plain = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, false);
   const AccuracyRun lit = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, true);
@@ -223,7 +255,7 @@ TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   print("room co-lit+d^2", lit);
   EXPECT_LT(lit.errors.exposure_median_relative, 0.2);
   EXPECT_LT(lit.errors.exposure_median_relative, 0.3 * plain.errors.exposure_median_relative);
-  EXPECT_LT(lit.errors.vignette_mean, 0.6 * plain.errors.vignette_mean);
+  EXPECT_LT(lit.errors.vignette_mean, 0.85 * plain.errors.vignette_mean);
   EXPECT_LT(lit.estimate->residual_rms, 0.75 * plain.estimate->residual_rms);
 }
 
@@ -242,14 +274,25 @@ TEST(PhotometricAccuracy, CoLitTable) {
 
 // The full table: 4 scenes x 4 response presets (NIRSLAM_PHOTOMETRIC_TABLE=1 to run it).
 TEST(PhotometricAccuracy, Table) {
+  // NIRSLAM_PHOTOMETRIC_ROWS=outdoor,tunnel: only the rows whose label contains one of them.
   if (std::getenv("NIRSLAM_PHOTOMETRIC_TABLE") == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_TABLE=1";
   const std::string which = std::getenv("NIRSLAM_PHOTOMETRIC_TABLE");
   if (which == "colit") GTEST_SKIP() << "the co-lit table is CoLitTable";
   const bool known = which != "normalised";
   for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
     for (const ResponsePreset preset : {ResponsePreset::Linear, ResponsePreset::Gamma, ResponsePreset::Log, ResponsePreset::Filmic}) {
-      const AccuracyRun r = run(constant_radiance(scene, preset, 150), known);
       const std::string label = std::string(sim::to_string(scene)) + " " + std::string(to_string(preset));
+      if (const char* rows = std::getenv("NIRSLAM_PHOTOMETRIC_ROWS")) {
+        bool wanted = false;
+        std::string list = rows;
+        for (std::size_t a = 0; a <= list.size();) {
+          const std::size_t b = std::min(list.find(',', a), list.size());
+          wanted |= b > a && label.find(list.substr(a, b - a)) != std::string::npos;
+          a = b + 1;
+        }
+        if (!wanted) continue;
+      }
+      const AccuracyRun r = run(constant_radiance(scene, preset, 150), known);
       print(label.c_str(), r);
     }
 }

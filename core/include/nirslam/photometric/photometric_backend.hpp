@@ -25,6 +25,11 @@
 // The factor is held during each Gauss-Newton linearisation (IRLS-like) and evaluated exactly in
 // the cost that decides whether a step is accepted.
 //
+// In the solver the derivatives in v and e are those of the weighted grey-domain residual
+// s = (G - e V L) k (k frozen per linearisation) carried to r units, -L r^(2j) / V and -L / e:
+// they equal the above only where G = e V L, and with the observed (noisy) G the iteration's
+// fixed point is not the cost's minimum (a vignette 2-4x too weak on simulated sequences).
+//
 // Solver: Levenberg-Marquardt over the globals x = (c1..c4, v1..v3, free e_i),
 //   (J^T W J + lambda diag(J^T W J)) dx = -J^T W r          (Eq. 2-3, 2-4)
 // with the radiances eliminated by the Schur complement (each L_p is a 1 x 1 block), and the
@@ -132,6 +137,15 @@ struct PhotometricBackendOptions {
   double gradient_mu = 25.0;         // mu of Eq. 2-5, grey levels^2 per px^2
   double huber_k = 2.0;               // Huber width in robust standard deviations of the residual
   double coefficient_prior_weight = 1e-4;  // per observation, on (c - c_initial), in weighted-residual units
+  // Per observation, on the squared second differences of log f^-1 over log I (grey levels 5 %
+  // apart, up to 255) from about 24 grey levels below the top of the observed range
+  // (BackendStep::grey_high) on: a straight line there is a constant gamma; the weight is scaled
+  // by (255 - grey_high) / 255, the part of the scale the data leave open. Inside the observed grey range the data fix G = f^-1 only up to a scale when no frame
+  // comes near saturation (G(255) = 255 lies outside; see test_photometric_diagnostics.cpp): the
+  // basis then reaches 255 with any bend, and the smoothest continuation of log G is the
+  // documented choice among the curves the data cannot tell apart. Used only when some keyframe
+  // exposure is known (held); without, the gamma is free too and stays with the basis and prior.
+  double log_curvature_weight = 3.0;  // measured: room/log irradiance scale 0.98 (3.2 with 0); README table
   double min_exposure_ratio = 1.15;   // max/min exposure in the window below which f is not estimated
   double min_radius_span = 0.1;       // V is estimated when min_points / 2 points span this range of radii
   bool vignette_monotonic = true;     // every accepted V falls (weakly) from the centre to the rim

@@ -51,6 +51,14 @@ struct PhotometricTrackerOptions {
   // Smaller eigenvalue of the patch's mean gradient tensor over its squared mean brightness (so
   // the test does not depend on exposure): 1e-4 = gradients of about 1 % of the brightness per px.
   double min_structure = 1.0e-4;
+  // Drift check against the track's FIRST patch: the normalised cross-correlation (invariant to
+  // an affine brightness change) of the current patch with the patch at detection must stay at or
+  // above this, else the track is dropped. Frame-to-frame KLT lets a patch slide along an edge or
+  // follow an occlusion corner (foreground edge over a background that moves with parallax) while
+  // every step passes the forward-backward test; the back end, which takes a track's pixels for
+  // fixed surface points, then sees their radiance change with the image position (measured in
+  // test_photometric_diagnostics.cpp). 0 switches the check off.
+  double min_reference_ncc = 0.0;
   double min_brightness_gain = 0.2;        // a outside these: not the same patch
   double max_brightness_gain = 5.0;
   double black_level = 0.03;               // for the frame's black / saturated fractions
@@ -84,6 +92,7 @@ struct TrackObservation {
   int age = 0;                     // frames since detection; 0 = detected in this frame
   PatchSamples samples;            // fraction of full scale, at `position`
   double brightness_gain = 1.0;    // from the previous frame (1 for new tracks)
+  PatchSamples reference;          // the patch when the track was detected (drift check)
 };
 
 struct TrackedFrame {

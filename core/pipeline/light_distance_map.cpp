@@ -69,9 +69,8 @@ std::size_t LightDistanceMap::neighbours(const Eigen::Vector2d& pixel, std::arra
   return n;
 }
 
-std::optional<double> LightDistanceMap::light_distance(const Eigen::Vector2d& pixel) const {
-  std::array<const Entry*, kMaxNeighbours> near{};
-  const std::size_t n = neighbours(pixel, near);
+std::optional<double> LightDistanceMap::median_distance(const std::array<const Entry*, kMaxNeighbours>& near,
+                                                       std::size_t n) const {
   if (static_cast<int>(n) < options_.min_neighbours) return std::nullopt;
   // The median of the neighbours' log distances: a single point's depth is noisy (a window's
   // active points scatter by 10-20 % in depth at 320x240), and on a depth edge the median takes
@@ -83,13 +82,18 @@ std::optional<double> LightDistanceMap::light_distance(const Eigen::Vector2d& pi
   return std::exp(static_cast<double>(*middle));
 }
 
+std::optional<double> LightDistanceMap::light_distance(const Eigen::Vector2d& pixel) const {
+  std::array<const Entry*, kMaxNeighbours> near{};
+  return median_distance(near, neighbours(pixel, near));
+}
+
 std::optional<LightGeometry> LightDistanceMap::light_geometry(const Eigen::Vector2d& pixel) const {
-  const std::optional<double> distance = light_distance(pixel);
+  std::array<const Entry*, kMaxNeighbours> near{};
+  const std::size_t n = neighbours(pixel, near);
+  const std::optional<double> distance = median_distance(near, n);
   if (!distance) return std::nullopt;
   LightGeometry geometry;
   geometry.distance = *distance;
-  std::array<const Entry*, kMaxNeighbours> near{};
-  const std::size_t n = neighbours(pixel, near);
   if (static_cast<int>(n) < options_.min_plane_points) return geometry;
   // Plane through the neighbours (relative to the lamp: the offset cancels in the scatter).
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();

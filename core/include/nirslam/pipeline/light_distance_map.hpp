@@ -4,9 +4,9 @@
 // distances come from the odometry's active points projected through a predicted pose of that
 // frame (constant velocity from the last two tracked frames). A tracked patch takes the median
 // distance of the points projected near it, none where too few are (the calibration leaves such
-// observations out rather than guess). Units are the odometry's: monocular scale cancels in the calibration's ratio
-// (d_ref / d)^2 when the light sits at the camera centre, and nearly so for a lamp a few
-// centimetres beside the lens.
+// observations out rather than guess). Units are the odometry's: monocular scale cancels in the
+// calibration's ratio (d_ref / d)^2 when the light sits at the camera centre, and nearly so for a
+// lamp a few centimetres beside the lens.
 
 #include <array>
 #include <cstddef>
@@ -49,7 +49,7 @@ public:
   void clear();
 
   // Distance from the lamp to the surface seen at `pixel` (the frame's own pixel coordinates),
-  // std::nullopt where no projected point is near or the near ones disagree.
+  // the median over the projected points within the radius; std::nullopt where fewer are near.
   std::optional<double> light_distance(const Eigen::Vector2d& pixel) const;
   // The distance and, where a plane fits the neighbours, the cosine.
   std::optional<LightGeometry> light_geometry(const Eigen::Vector2d& pixel) const;
@@ -66,6 +66,7 @@ private:
   };
   // The neighbours of a pixel (at most kMaxNeighbours); their count.
   std::size_t neighbours(const Eigen::Vector2d& pixel, std::array<const Entry*, kMaxNeighbours>& out) const;
+  std::optional<double> median_distance(const std::array<const Entry*, kMaxNeighbours>& near, std::size_t n) const;
   int cell_of(int cx, int cy) const { return cy * cells_x_ + cx; }
 
   LightDistanceMapOptions options_;

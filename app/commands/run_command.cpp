@@ -63,6 +63,7 @@ struct RunTotals {
   int segments = 0;
   std::int64_t map_points = 0;
   std::vector<std::string> files;
+  nlohmann::json light_offset;  // the lamp offset estimate (illuminated mode), null without one
 };
 
 void write_summary(const std::filesystem::path& file, const RunOptions& options, PipelineMode mode,
@@ -87,6 +88,7 @@ void write_summary(const std::filesystem::path& file, const RunOptions& options,
                    {"mapping", totals.mapping_ms / n}}},
       {"odometry", {{"poses", totals.poses}, {"keyframes", totals.keyframes}, {"segments", totals.segments},
                     {"lost_frames", totals.lost_frames}, {"map_points", totals.map_points}}},
+      {"light_offset_estimate", totals.light_offset},
       {"files", totals.files},
   };
   std::ofstream out(file);
@@ -96,6 +98,18 @@ void write_summary(const std::filesystem::path& file, const RunOptions& options,
 
 // Writes what the pipeline ended with: trajectory, keyframes, points, calibration.
 void write_pipeline_outputs(const SlamPipeline& pipeline, const std::filesystem::path& out_dir, RunTotals& totals) {
+  if (const auto& e = pipeline.light_offset_estimate()) {
+    const Eigen::Vector3d sigma = e->sigma();
+    totals.light_offset = {{"offset_cam", {e->offset_cam.x(), e->offset_cam.y(), e->offset_cam.z()}},
+                           {"sigma", {sigma.x(), sigma.y(), sigma.z()}},
+                           {"determined", e->determined},
+                           {"reason", e->reason},
+                           {"points", e->points},
+                           {"median_point_distance", e->median_distance},
+                           {"rms_log_before", e->rms_log_before},
+                           {"rms_log_after", e->rms_log_after},
+                           {"applied", pipeline.options().apply_estimated_light_offset && e->determined}};
+  }
   if (const DirectOdometry* odometry = pipeline.odometry()) {
     const std::vector<PoseStamped> trajectory = odometry->trajectory();
     const std::vector<MapPoint> points = odometry->points();

@@ -58,7 +58,10 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   if (odometry.has("light_offset")) {
     if (offset.size() != 3) odometry.fail_at("light_offset", "expected 3 numbers [x, y, z], got " + std::to_string(offset.size()));
     pipeline.odometry.light_offset = Eigen::Vector3d(offset[0], offset[1], offset[2]);
+    pipeline.light_offset_configured = true;
   }
+  odometry.read_flag("estimate_light_offset", pipeline.estimate_light_offset);
+  odometry.read_flag("apply_estimated_light_offset", pipeline.apply_estimated_light_offset);
   odometry.read<double>("beam_exponent", pipeline.odometry.beam_exponent, 0.0, 100.0);
   odometry.read_flag("surface_normals", pipeline.odometry.lamp_surface_normals);
   odometry.reject_unknown_keys();

@@ -79,9 +79,11 @@ double LightOffsetEstimator::log_falloff(const LampObservation& o, const Eigen::
 }
 
 // Cost at `light` with every point's albedo at its (weighted) optimum; the rms of the residuals.
-double LightOffsetEstimator::robust_cost(const Eigen::Vector3d& light, double* rms) const {
+double LightOffsetEstimator::robust_cost(const Eigen::Vector3d& light, double* rms, double* robust_sigma) const {
   double cost = 0.0, sum_r2 = 0.0;
   int n = 0;
+  std::vector<double> absolute;
+  if (robust_sigma) absolute.reserve(observations_.size());
   for (int p = 0; p + 1 < static_cast<int>(point_start_.size()); ++p) {
     double sum = 0.0;
     int count = 0;
@@ -111,9 +113,19 @@ double LightOffsetEstimator::robust_cost(const Eigen::Vector3d& light, double* r
       cost += huber_cost(r, options_.huber_log);
       sum_r2 += r * r;
       ++n;
+      if (robust_sigma) absolute.push_back(std::abs(r));
     }
   }
   if (rms) *rms = n > 0 ? std::sqrt(sum_r2 / n) : 0.0;
+  if (robust_sigma) {
+    // 1.4826 x the median absolute residual: the noise's sigma, whatever a few glints do.
+    *robust_sigma = 0.0;
+    if (!absolute.empty()) {
+      const auto middle = absolute.begin() + static_cast<std::ptrdiff_t>(absolute.size() / 2);
+      std::nth_element(absolute.begin(), middle, absolute.end());
+      *robust_sigma = 1.4826 * *middle;
+    }
+  }
   return cost;
 }
 
@@ -200,7 +212,7 @@ LightOffsetEstimate LightOffsetEstimator::estimate(const Eigen::Vector3d& start)
     out.iterations = iteration + 1;
     if (!accepted || step.norm() < 1e-6 * out.median_distance) break;
   }
-  robust_cost(light, &out.rms_log_after);
+  robust_cost(light, &out.rms_log_after, &out.robust_sigma_log);
   out.offset_cam = light;
   // Covariance from the data alone (the prior would make any direction look determined), with
   // the weighted residual variance (3 parameters plus one albedo per point), floored at the
@@ -226,6 +238,11 @@ LightOffsetEstimate LightOffsetEstimator::estimate(const Eigen::Vector3d& start)
     sigma.maxCoeff(&axis);
     out.reason = fmt::format("not determined along {}: sigma {:.3g} > {:.3g} (the poses do not see the lamp's "
                              "falloff change enough)", kAxes[axis], sigma(axis), limit);
+    return out;
+  }
+  if (out.robust_sigma_log > options_.max_sigma_log) {
+    out.reason = fmt::format("the lamp model does not fit the brightness (robust sigma {:.3f} in log, above {:.3f}): "
+                             "the halo factor, the response or the depths are off", out.robust_sigma_log, options_.max_sigma_log);
     return out;
   }
   if (light.norm() > options_.max_offset_fraction * out.median_distance) {

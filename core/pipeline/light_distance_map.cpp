@@ -111,8 +111,14 @@ std::optional<LightGeometry> LightDistanceMap::light_geometry(const Eigen::Vecto
   // The lamp lights the side facing it: cos = n . (direction from the surface to the lamp).
   const Eigen::Vector3f to_lamp = -centroid.normalized();
   float cosine = normal.dot(to_lamp);
-  if (cosine < 0.0f) cosine = -cosine;
-  if (cosine >= static_cast<float>(options_.min_cosine)) geometry.cosine = static_cast<double>(cosine);
+  if (cosine < 0.0f) {
+    cosine = -cosine;
+    normal = -normal;
+  }
+  if (cosine >= static_cast<float>(options_.min_cosine)) {
+    geometry.cosine = static_cast<double>(cosine);
+    geometry.normal_cam = normal.cast<double>();
+  }
   return geometry;
 }
 

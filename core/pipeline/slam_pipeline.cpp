@@ -76,6 +76,8 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
   options_.odometry.illuminator_correction = corrects_illuminator(options_.mode);
   // The beam is radial in the image like the vignetting, so the calibration's halo factor holds
   // it and the corrected frames no longer show it: only raw frames need the beam term.
+  if (options_.light_offset_estimation.beam_exponent < 0.0)
+    options_.light_offset_estimation.beam_exponent = options_.odometry.beam_exponent;
   if (runs_calibration(options_.mode)) options_.odometry.beam_exponent = 0.0;
   if (runs_calibration(options_.mode))
     calibration_ = std::make_unique<OnlinePhotometricCalibration>(options_.calibration);
@@ -94,6 +96,8 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
     odometry_ = std::make_unique<DirectOdometry>(*pinhole_, options_.odometry);
     if (calibration_ && corrects_illuminator(options_.mode) && options_.lamp_distances_to_calibration)
       light_distances_ = std::make_unique<LightDistanceMap>(*camera_, options_.light_distances);
+    if (light_distances_ && options_.estimate_light_offset && !options_.light_offset_configured)
+      light_offset_ = std::make_unique<KeyframeLightOffset>(*pinhole_, options_.light_offset_estimation);
   }
 }
 
@@ -181,6 +185,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     result.timings.mapping_ms = odometry.timings.mapping_ms;
     update_trajectory(frame, odometry);
     remember_odometry(odometry);
+    estimate_light_offset(input, odometry);
     result.odometry = std::move(odometry);
   }
   return result;
@@ -196,14 +201,34 @@ bool SlamPipeline::predict_light_distances() {
   return !light_distances_->empty();
 }
 
+void SlamPipeline::estimate_light_offset(const OdometryFrame& input, const OdometryResult& result) {
+  if (!light_offset_ || !result.is_keyframe || !result.T_world_cam) return;
+  if (result.segment != light_offset_segment_) {
+    // A new world frame and scale: what was estimated in the old one's units does not hold.
+    light_offset_segment_ = result.segment;
+    light_offset_estimate_.reset();
+    if (options_.apply_estimated_light_offset) options_.odometry.light_offset.setZero();
+  }
+  const double exposure = input.exposure.value_or(1.0) * input.illuminator_power_w.value_or(1.0);
+  light_offset_->add_keyframe(result.segment, *result.T_world_cam, input.image, exposure);
+  if (light_offset_->keyframes() < 3) return;  // fewer views fix nothing
+  const Eigen::Vector3d start = light_offset_estimate_ && light_offset_estimate_->determined
+                                    ? light_offset_estimate_->offset_cam
+                                    : Eigen::Vector3d::Zero();
+  light_offset_estimate_ = light_offset_->estimate(window_points_, start);
+  if (options_.apply_estimated_light_offset && light_offset_estimate_->determined)
+    options_.odometry.light_offset = light_offset_estimate_->offset_cam;
+  photometric_dirty_ = true;
+}
+
 void SlamPipeline::remember_odometry(const OdometryResult& result) {
-  if (!light_distances_) return;
+  if (!light_distances_ && !light_offset_) return;
   if (!result.T_world_cam || (last_pose_ && last_pose_->segment != result.segment)) {
     // Lost or a new segment: its world frame is new, and the old points do not belong to it.
     last_pose_.reset();
     previous_pose_.reset();
     window_points_.clear();
-    light_distances_->clear();
+    if (light_distances_) light_distances_->clear();
     if (!result.T_world_cam) return;
   }
   previous_pose_ = last_pose_;
@@ -256,6 +281,15 @@ std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
       view->lamp_term = light_distance_points_ > 0
                             ? fmt::format("lamp term: {} odometry points", light_distance_points_)
                             : "lamp term: waiting for the odometry's points";
+    if (light_offset_estimate_) {
+      const LightOffsetEstimate& e = *light_offset_estimate_;
+      const Eigen::Vector3d sigma = e.sigma();
+      view->lamp_term += e.determined
+          ? fmt::format("\nlamp offset ({:.3f}, {:.3f}, {:.3f}) +- ({:.3f}, {:.3f}, {:.3f}) from {} points{}",
+                        e.offset_cam.x(), e.offset_cam.y(), e.offset_cam.z(), sigma.x(), sigma.y(), sigma.z(), e.points,
+                        options_.apply_estimated_light_offset ? ", in use" : ", not applied")
+          : "\nlamp offset: " + e.reason;
+    }
     const auto& history = calibration_->exposure_history();
     if (!history.empty()) {
       view->exposure_status = history.back().status == ExposureStatus::Estimated ? "estimated" : std::string();

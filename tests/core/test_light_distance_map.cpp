@@ -117,6 +117,8 @@ TEST(LightDistanceMap, CosineOfTheLightOnAPlane) {
     }
     ASSERT_TRUE(geometry->cosine) << pixel.transpose();
     EXPECT_NEAR(*geometry->cosine, cosine, 0.02) << pixel.transpose();
+    ASSERT_TRUE(geometry->normal_cam);
+    EXPECT_LT((*geometry->normal_cam - Eigen::Vector3d(0.0, -1.0, 0.0)).norm(), 0.02) << "facing the lamp";
   }
   // A scattered cloud fits no plane: a distance, no cosine.
   std::vector<Eigen::Vector3d> cloud;

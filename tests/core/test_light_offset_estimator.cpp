@@ -154,6 +154,14 @@ TEST(LightOffsetEstimator, AStillCameraDoesNotDetermineIt) {
   EXPECT_LT(e.offset_cam.norm(), 0.1) << "stays near the start";
 }
 
+TEST(LightOffsetEstimator, AModelThatDoesNotFitIsNotUsed) {
+  // 20 % brightness noise (a halo factor or response far off): the covariance alone would call
+  // the offset determined from so many points; the residuals say the model does not hold.
+  const LightOffsetEstimate e = filled(scene(3000, true), Eigen::Vector3d(0.0, 0.05, 0.0), false, 0.2).estimate();
+  EXPECT_FALSE(e.determined);
+  EXPECT_NE(e.reason.find("does not fit"), std::string::npos) << e.reason;
+}
+
 TEST(LightOffsetEstimator, TooFewPointsOrViewsSayWhy) {
   const SyntheticScene s = scene(10, true);
   LightOffsetEstimator estimator = filled(s, Eigen::Vector3d(0.0, 0.05, 0.0), false, 0.0);

@@ -53,6 +53,19 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_EQ(config.worker.pipeline.calibration.iterations_per_keyframe, 2);
 }
 
+TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
+  // The shipped file leaves the offset out: the illuminated mode estimates and reports it.
+  const PipelineConfig shipped = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/pipeline.yaml");
+  EXPECT_FALSE(shipped.worker.pipeline.light_offset_configured);
+  EXPECT_TRUE(shipped.worker.pipeline.estimate_light_offset);
+  EXPECT_FALSE(shipped.worker.pipeline.apply_estimated_light_offset);
+  const PipelineConfig config = load_pipeline_config(write_yaml(
+      "lamp", "odometry:\n  light_offset: [0.0, 0.02, 0.0]\n  apply_estimated_light_offset: true\n"));
+  EXPECT_TRUE(config.worker.pipeline.light_offset_configured);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.light_offset.y(), 0.02);
+  EXPECT_TRUE(config.worker.pipeline.apply_estimated_light_offset);
+}
+
 TEST(PipelineConfig, MissingKeysKeepDefaults) {
   const PipelineConfig config = load_pipeline_config(write_yaml("partial", "demo:\n  fps: 20\n"));
   EXPECT_DOUBLE_EQ(config.demo.fps, 20.0);

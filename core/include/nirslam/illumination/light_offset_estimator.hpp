@@ -46,6 +46,10 @@ struct LightOffsetEstimatorOptions {
   double prior_sigma_fraction = 0.5;
   // The residuals' standard deviation is taken as at least this (log units) for the covariance.
   double min_residual_sigma = 0.005;
+  // A fit whose residuals' robust sigma (1.4826 x median absolute) stays above this (log units)
+  // says the model does not hold (halo or response wrong, depths off): its covariance would
+  // flatter it, so it is not used.
+  double max_sigma_log = 0.06;
   double max_offset_fraction = 0.5;
   // The beam B = cos(alpha)^m around the optical axis, alpha seen from the lamp: with m > 0 the
   // observations keep the beam (the lens vignetting alone divided out) and the model carries it,
@@ -60,6 +64,7 @@ struct LightOffsetEstimate {
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // from the residuals' robust scale
   double rms_log_before = 0.0;  // robust rms of the residuals at the starting offset
   double rms_log_after = 0.0;
+  double robust_sigma_log = 0.0;  // of the residuals after the fit
   double median_distance = 0.0;
   int points = 0;
   int observations = 0;
@@ -93,7 +98,7 @@ public:
                             Eigen::Vector3d* d_light = nullptr, double beam_exponent = 0.0);
 
 private:
-  double robust_cost(const Eigen::Vector3d& light, double* rms) const;
+  double robust_cost(const Eigen::Vector3d& light, double* rms, double* robust_sigma = nullptr) const;
 
   LightOffsetEstimatorOptions options_;
   std::vector<LampObservation> observations_;

@@ -35,6 +35,7 @@ struct LightDistanceMapOptions {
 struct LightGeometry {
   double distance = 0.0;              // from the lamp to the surface
   std::optional<double> cosine;       // of the angle between the light's ray and the surface normal
+  std::optional<Eigen::Vector3d> normal_cam;  // that normal (camera axes, facing the lamp), with the cosine
 };
 
 class LightDistanceMap {

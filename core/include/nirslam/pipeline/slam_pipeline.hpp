@@ -24,6 +24,7 @@
 #include "nirslam/image/frame.hpp"
 #include "nirslam/odometry/direct_odometry.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
+#include "nirslam/pipeline/keyframe_light_offset.hpp"
 #include "nirslam/pipeline/light_distance_map.hpp"
 #include "nirslam/sources/source.hpp"
 #include "nirslam/worker/photometric_view.hpp"
@@ -65,6 +66,20 @@ struct PipelineOptions {
   // ... and cos(theta) from planes fitted to the points (patches where no plane fits are left out).
   bool lamp_cosine_to_calibration = false;
   LightDistanceMapOptions light_distances;
+  // The lamp's offset from the camera centre (Illuminated mode): when odometry.light_offset is
+  // not configured, estimated at every keyframe from the recent keyframes (keyframe_light_offset.hpp)
+  // and reported; used for the calibration's lamp distances only with apply_estimated_light_offset
+  // (off until it is shown to help). beam_exponent < 0: the odometry's configured beam.
+  bool light_offset_configured = false;
+  bool estimate_light_offset = true;
+  bool apply_estimated_light_offset = false;
+  KeyframeLightOffsetOptions light_offset_estimation = beam_from_the_odometry();
+
+  static KeyframeLightOffsetOptions beam_from_the_odometry() {
+    KeyframeLightOffsetOptions o;
+    o.beam_exponent = -1.0;
+    return o;
+  }
 };
 
 struct PipelineTimings {
@@ -111,6 +126,10 @@ public:
   const OnlinePhotometricCalibration* calibration() const { return calibration_.get(); }
   // The lamp distances the calibration got for the last frame (Illuminated mode; else nullptr).
   const LightDistanceMap* light_distances() const { return light_distances_.get(); }
+  // The lamp offset estimated at the last keyframe (Illuminated mode, offset not configured).
+  const std::optional<LightOffsetEstimate>& light_offset_estimate() const { return light_offset_estimate_; }
+  // The offset the lamp distances use: configured, estimated and applied, or the camera centre.
+  const Eigen::Vector3d& light_offset() const { return options_.odometry.light_offset; }
   // The pinhole the odometry works in (after undistortion), when it runs.
   const PinholeCamera* odometry_camera() const;
   // Why the odometry does not run, when it does not.
@@ -146,6 +165,10 @@ private:
   std::optional<TrackedPose> last_pose_;
   std::optional<TrackedPose> previous_pose_;
   std::size_t light_distance_points_ = 0;  // of the last frame
+  std::unique_ptr<KeyframeLightOffset> light_offset_;
+  std::optional<LightOffsetEstimate> light_offset_estimate_;
+  int light_offset_segment_ = -1;
+  void estimate_light_offset(const OdometryFrame& input, const OdometryResult& result);
 
   // View state.
   std::vector<ExposurePoint> exposures_;

@@ -14,7 +14,7 @@
 namespace nirslam {
 namespace {
 
-TEST(KeyframeLightOffset, FindsTheRoomsLampFromKeyframesAndPoints) {
+TEST(KeyframeLightOffset, FindsTheRoomsLampFromRenderedKeyframes) {
   SimulatorOptions o;
   o.scene = sim::SceneKind::Room;
   o.width = 320;

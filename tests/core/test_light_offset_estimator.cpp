@@ -231,7 +231,7 @@ sim::SceneKind scene_from_environment() {
   return s == "parking" ? sim::SceneKind::Parking : s == "tunnel" ? sim::SceneKind::Tunnel : sim::SceneKind::Room;
 }
 
-TEST(LightOffsetEstimator, FindsTheSimulatedRigsLampFromRenderedRoom) {
+TEST(LightOffsetEstimator, FindsTheSimulatedRigsLampFromRenderedFrames) {
   SimulatorOptions o;
   o.scene = scene_from_environment();
   o.motion = sim::MotionKind::Handheld;

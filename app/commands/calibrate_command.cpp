@@ -1,15 +1,19 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <optional>
 #include <string>
 
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
 #include "commands/source_argument.hpp"
 #include "commands/subcommand.hpp"
 #include "nirslam/common/error.hpp"
+#include "nirslam/photometric/beam_from_halo.hpp"
 #include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/sim/simulator.hpp"
@@ -26,7 +30,40 @@ struct CalibrateOptions {
   std::int64_t max_frames = 0;
   fs::path json_file;
   bool ignore_reported_exposures = false;
+  fs::path lens_vignette;  // vignette.png of an earlier calibration without the lamp
 };
+
+// The lamp's beam: the estimated halo factor over the lens vignetting known from before.
+void write_beam(const fs::path& lens_file, const PhotometricEstimate& estimate, const Source& source,
+                const fs::path& out_dir) {
+  const std::shared_ptr<const CameraModel> camera = source.camera();
+  if (!camera)
+    throw InputError(lens_file.string(), "separating the beam needs the camera's intrinsics, and the sequence has none");
+  const cv::Mat lens = read_vignette_png(lens_file);
+  if (lens.cols != camera->width() || lens.rows != camera->height())
+    throw InputError(lens_file.string(), fmt::format("the lens vignette is {}x{}, the frames are {}x{}", lens.cols,
+                                                     lens.rows, camera->width(), camera->height()));
+  const cv::Mat halo = estimate.vignette.render(camera->width(), camera->height());
+  const BeamFit fit = fit_beam_from_halo(halo, lens, *camera);
+  write_vignette_png(out_dir / "beam.png", beam_pattern(halo, lens));
+  const nlohmann::json beam = {{"lens_vignette", lens_file.string()},
+                               {"determined", fit.ok},
+                               {"reason", fit.reason},
+                               {"beam_exponent", fit.beam_exponent},
+                               {"half_angle_deg", fit.half_angle_deg},
+                               {"rms_log", fit.rms_log},
+                               {"max_alpha_deg", fit.max_alpha_deg},
+                               {"samples", fit.samples}};
+  std::ofstream out(out_dir / "beam.json");
+  out << beam.dump(2) << '\n';
+  if (!out) throw std::runtime_error((out_dir / "beam.json").string() + ": cannot write");
+  if (fit.ok)
+    std::printf("  lamp beam (halo factor / lens vignette): cos(alpha)^%.2f, half angle %.1f degrees, rms %.3f in log "
+                "(odometry.beam_exponent)\n", fit.beam_exponent, fit.half_angle_deg, fit.rms_log);
+  else
+    std::printf("  lamp beam not determined: %s\n", fit.reason.c_str());
+  std::printf("  wrote beam.png and beam.json in %s\n", out_dir.string().c_str());
+}
 
 // Ground truth of a built-in simulated sequence: the simulator's default options for the scene
 // (as source_factory_from_argument builds them); per-frame exposures are collected while running.
@@ -116,6 +153,7 @@ int run_calibrate(const CalibrateOptions& options) {
     if (error) throw std::runtime_error(options.json_file.string() + ": cannot write (" + error.message() + ")");
   }
   std::printf("  wrote pcalib.txt, vignette.png, times.txt and calibration.json in %s\n", options.out_dir.string().c_str());
+  if (!options.lens_vignette.empty()) write_beam(options.lens_vignette, *estimate, *source, options.out_dir);
   return 0;
 }
 
@@ -134,6 +172,10 @@ void add_calibrate_command(CLI::App& parent, CommandAction& action) {
   cmd->add_option("--json", options->json_file, "Also write calibration.json to this file");
   cmd->add_flag("--ignore-exposures", options->ignore_reported_exposures,
                 "Do not use exposure times reported by the source (ambiguity fixed by normalisation instead)");
+  cmd->add_option("--lens-vignette", options->lens_vignette,
+                  "vignette.png of the lens alone (an earlier calibration with the lamp off): the halo factor\n"
+                  "estimated here is split into it and the lamp's beam (beam.png, beam.json: cos^m, half angle)")
+      ->check(CLI::ExistingFile);
   cmd->callback([options, &action] { action = [options] { return run_calibrate(*options); }; });
 }
 

@@ -19,8 +19,11 @@ TEST(CalibrateCommand, WritesDsoFilesAndErrorsForASimulatedSequence) {
   const std::string exe = NIRSLAM_EXECUTABLE;
   const auto sim = run_command(exe + " simulate --scene room --frames 40 --out " + (dir / "seq").string());
   ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  // The sequence's vignette.png is the lens alone: the halo factor estimated under the lamp
+  // splits into it and the beam.
   const auto r = run_command(exe + " calibrate " + (dir / "seq").string() + " --out " + (dir / "out").string() +
-                             " --json " + (dir / "c.json").string());
+                             " --json " + (dir / "c.json").string() + " --lens-vignette " +
+                             (dir / "seq" / "vignette.png").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("errors vs ground truth"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("ambiguity resolution: known exposures"), std::string::npos) << r.output;
@@ -29,6 +32,26 @@ TEST(CalibrateCommand, WritesDsoFilesAndErrorsForASimulatedSequence) {
   EXPECT_EQ(lines_of(dir / "out" / "times.txt").size(), 40u);
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "calibration.json"));
   EXPECT_TRUE(std::filesystem::exists(dir / "c.json"));
+  EXPECT_NE(r.output.find("lamp beam"), std::string::npos) << r.output;
+  EXPECT_FALSE(read_vignette_png(dir / "out" / "beam.png").empty());
+  const auto beam = lines_of(dir / "out" / "beam.json");
+  std::string text;
+  for (const auto& line : beam) text += line;
+  EXPECT_NE(text.find("\"beam_exponent\""), std::string::npos) << text;
+  EXPECT_NE(text.find("\"determined\""), std::string::npos) << text;
+}
+
+TEST(CalibrateCommand, LensVignetteOfAnotherSizeIsNamed) {
+  const auto dir = fresh_dir("calibrate_lens");
+  const std::string exe = NIRSLAM_EXECUTABLE;
+  const auto sim = run_command(exe + " simulate --scene room --frames 12 --width 320 --height 240 --out " + (dir / "seq").string());
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  write_vignette_png(dir / "lens.png", VignetteModel{}.render(640, 480));
+  const auto r = run_command(exe + " calibrate " + (dir / "seq").string() + " --out " + (dir / "out").string() +
+                             " --lens-vignette " + (dir / "lens.png").string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("lens.png"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("640x480"), std::string::npos) << r.output;
 }
 
 TEST(CalibrateCommand, MissingFolderIsNamed) {

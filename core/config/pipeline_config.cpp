@@ -71,6 +71,13 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read_flag("use_reported_exposures", pipeline.calibration.use_reported_exposures);
   calibration.read<int>("iterations_per_keyframe", pipeline.calibration.iterations_per_keyframe, 1, 100);
   calibration.read<int>("queue_capacity", pipeline.calibration.queue_capacity, 1, 1000);
+  if (const auto lens = calibration.read_text("lens_vignette")) {
+    // Relative to the config file, so a rig's folder can carry its own calibration.
+    std::filesystem::path lens_file(*lens);
+    if (lens_file.is_relative()) lens_file = file.parent_path() / lens_file;
+    if (!std::filesystem::exists(lens_file)) calibration.fail_at("lens_vignette", lens_file.string() + " does not exist");
+    pipeline.lens_vignette_file = lens_file;
+  }
   calibration.reject_unknown_keys();
 
   YamlMapReader demo(root["demo"], file, "demo");

@@ -26,7 +26,16 @@ float sample(const cv::Mat& image, const Eigen::Vector2d& pixel) {
 
 KeyframeLightOffset::KeyframeLightOffset(const PinholeCamera& camera, KeyframeLightOffsetOptions options)
     : camera_(camera), options_(std::move(options)), normals_(camera, options_.normals) {
-  options_.estimator.beam_exponent = options_.beam_exponent;
+  set_beam_exponent(options_.beam_exponent);
+}
+
+void KeyframeLightOffset::set_beam_exponent(double beam_exponent) {
+  // Small changes (each back-end update moves the halo a little) keep what is stored.
+  if (!beam_by_pixel_.empty() && std::abs(beam_exponent - options_.beam_exponent) < 0.1) return;
+  views_.clear();
+  options_.beam_exponent = beam_exponent;
+  options_.estimator.beam_exponent = beam_exponent;
+  beam_by_pixel_.release();
   if (options_.beam_exponent > 0.0) {
     beam_by_pixel_.create(camera_.height(), camera_.width(), CV_32FC1);
     for (int y = 0; y < camera_.height(); ++y)

@@ -11,6 +11,8 @@
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
+#include "nirslam/common/error.hpp"
+
 namespace nirslam {
 namespace {
 
@@ -94,6 +96,13 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
       undistorter_ = std::make_unique<Undistorter>(*camera_, *pinhole_);
     }
     odometry_ = std::make_unique<DirectOdometry>(*pinhole_, options_.odometry);
+    if (calibration_ && !options_.lens_vignette_file.empty()) {
+      lens_vignette_ = read_vignette_png(options_.lens_vignette_file);
+      if (lens_vignette_.cols != camera_->width() || lens_vignette_.rows != camera_->height())
+        throw InputError(options_.lens_vignette_file, fmt::format("the lens vignette is {}x{}, the camera {}x{}",
+                                                                  lens_vignette_.cols, lens_vignette_.rows,
+                                                                  camera_->width(), camera_->height()));
+    }
     if (calibration_ && corrects_illuminator(options_.mode) && options_.lamp_distances_to_calibration)
       light_distances_ = std::make_unique<LightDistanceMap>(*camera_, options_.light_distances);
     if (light_distances_ && options_.estimate_light_offset && !options_.light_offset_configured)
@@ -221,6 +230,15 @@ void SlamPipeline::estimate_light_offset(const OdometryFrame& input, const Odome
   photometric_dirty_ = true;
 }
 
+void SlamPipeline::fit_beam(const PhotometricEstimate& estimate) {
+  beam_fit_version_ = estimate.model_version;
+  if (estimate.model_version <= 0) return;  // the initial model says nothing of the lamp
+  beam_fit_ = fit_beam_from_halo(estimate.vignette.render(lens_vignette_.cols, lens_vignette_.rows), lens_vignette_, *camera_);
+  // The offset estimation models the beam from the lamp; without a configured exponent, this one.
+  if (light_offset_ && beam_fit_->ok && options_.light_offset_estimation.beam_exponent == 0.0)
+    light_offset_->set_beam_exponent(beam_fit_->beam_exponent);
+}
+
 void SlamPipeline::remember_odometry(const OdometryResult& result) {
   if (!light_distances_ && !light_offset_) return;
   if (!result.T_world_cam || (last_pose_ && last_pose_->segment != result.segment)) {
@@ -284,11 +302,18 @@ std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
     if (light_offset_estimate_) {
       const LightOffsetEstimate& e = *light_offset_estimate_;
       const Eigen::Vector3d sigma = e.sigma();
-      view->lamp_term += e.determined
-          ? fmt::format("\nlamp offset ({:.3f}, {:.3f}, {:.3f}) +- ({:.3f}, {:.3f}, {:.3f}) from {} points{}",
+      view->lamp_offset = e.determined
+          ? fmt::format("lamp offset ({:.3f}, {:.3f}, {:.3f}) +- ({:.3f}, {:.3f}, {:.3f}) from {} points{}",
                         e.offset_cam.x(), e.offset_cam.y(), e.offset_cam.z(), sigma.x(), sigma.y(), sigma.z(), e.points,
                         options_.apply_estimated_light_offset ? ", in use" : ", not applied")
-          : "\nlamp offset: " + e.reason;
+          : "lamp offset: " + e.reason;
+    }
+    if (!lens_vignette_.empty()) {
+      if (estimate->model_version != beam_fit_version_) fit_beam(*estimate);
+      if (beam_fit_)
+        view->lamp_beam = beam_fit_->ok ? fmt::format("lamp beam cos^{:.2f} (half angle {:.1f} deg) = halo / lens vignette",
+                                                      beam_fit_->beam_exponent, beam_fit_->half_angle_deg)
+                                        : "lamp beam: " + beam_fit_->reason;
     }
     const auto& history = calibration_->exposure_history();
     if (!history.empty()) {

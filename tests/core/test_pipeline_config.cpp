@@ -64,6 +64,13 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   EXPECT_TRUE(config.worker.pipeline.light_offset_configured);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.light_offset.y(), 0.02);
   EXPECT_TRUE(config.worker.pipeline.apply_estimated_light_offset);
+  // The lens vignette is found next to the config file; a missing one is named.
+  std::ofstream(fs::temp_directory_path() / "nirslam_lens.png") << "x";
+  const PipelineConfig lens = load_pipeline_config(write_yaml("lens", "calibration:\n  lens_vignette: nirslam_lens.png\n"));
+  EXPECT_EQ(lens.worker.pipeline.lens_vignette_file, fs::temp_directory_path() / "nirslam_lens.png");
+  const std::string missing = error_of(write_yaml("lens_missing", "calibration:\n  lens_vignette: no_such_lens.png\n"));
+  EXPECT_NE(missing.find("calibration.lens_vignette"), std::string::npos) << missing;
+  EXPECT_NE(missing.find("no_such_lens.png"), std::string::npos) << missing;
 }
 
 TEST(PipelineConfig, MissingKeysKeepDefaults) {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <cmath>
@@ -13,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "nirslam/photometric/calibration_output.hpp"
+#include "nirslam/photometric/response_model.hpp"
 #include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/sim/simulator.hpp"
 
@@ -175,6 +177,8 @@ struct LampFeedRun {
   double median_distance_spread = 0.0;  // per frame: MAD of log(d_odometry / d_true)
   PhotometricErrors errors;             // of the final estimate against the truth (halo factor V B)
   std::string lamp_term;                // what the photometric view says of it
+  std::string lamp_offset;
+  std::string lamp_beam;
 };
 
 // Issue 8 in the pipeline: under the co-located lamp (the only light) the calibration gets the
@@ -198,6 +202,10 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   PipelineOptions options;
   options.mode = PipelineMode::Illuminated;
   options.calibration.background_thread = false;
+  // The lens alone, as a calibration with the lamp off would have given it: the halo factor
+  // splits into it and the beam.
+  options.lens_vignette_file = std::filesystem::temp_directory_path() / "nirslam_pipeline_lens_vignette.png";
+  write_vignette_png(options.lens_vignette_file, simulator.vignette_map());
   options.lamp_distances_to_calibration = feed;
   options.lamp_cosine_to_calibration = std::getenv("NIRSLAM_PIPELINE_COSINE") != nullptr;
   SlamPipeline pipeline(options, simulator.camera());
@@ -229,6 +237,8 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   }
   pipeline.finish();
   run.lamp_term = pipeline.photometric_view()->lamp_term;
+  run.lamp_offset = pipeline.photometric_view()->lamp_offset;
+  run.lamp_beam = pipeline.photometric_view()->lamp_beam;
   if (!spreads.empty()) {
     std::nth_element(spreads.begin(), spreads.begin() + spreads.size() / 2, spreads.end());
     run.median_distance_spread = spreads[spreads.size() / 2];
@@ -244,6 +254,7 @@ void print(const char* label, const LampFeedRun& r) {
               label, r.frames_with_distances, r.median_distance_spread, r.errors.response_mean_grey,
               r.errors.response_max_grey, r.errors.vignette_mean, r.errors.vignette_max,
               100.0 * r.errors.exposure_median_relative);
+  std::printf("%-14s %s | %s\n", "", r.lamp_beam.c_str(), r.lamp_offset.c_str());
 }
 
 TEST(SlamPipelineSequence, IlluminatedModeGivesTheCalibrationTheLampDistances) {
@@ -254,6 +265,12 @@ TEST(SlamPipelineSequence, IlluminatedModeGivesTheCalibrationTheLampDistances) {
   EXPECT_EQ(plain.frames_with_distances, 0);
   EXPECT_TRUE(plain.lamp_term.empty()) << plain.lamp_term;
   EXPECT_NE(fed.lamp_term.find("odometry points"), std::string::npos) << fed.lamp_term;
+  // The offset is estimated (and says whether it is determined) where the distances are fed; the
+  // beam is read off the halo factor over the lens vignette in both runs.
+  std::printf("%s\n%s\n%s\n", fed.lamp_offset.c_str(), fed.lamp_beam.c_str(), plain.lamp_beam.c_str());
+  EXPECT_NE(fed.lamp_offset.find("lamp offset"), std::string::npos) << fed.lamp_offset;
+  EXPECT_TRUE(plain.lamp_offset.empty()) << plain.lamp_offset;
+  EXPECT_NE(fed.lamp_beam.find("lamp beam"), std::string::npos) << fed.lamp_beam;
   // Measured: distances on 113 of 120 frames, spread 0.13-0.19 (the window's points scatter
   // 10-20 % in depth at 320x240). The calibration errors are printed, not pinned: the response
   // came out 22.7 -> 4.9 grey levels here, but 21 or 59 after small changes in the odometry

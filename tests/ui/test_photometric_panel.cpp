@@ -97,6 +97,29 @@ TEST_F(PhotometricPanelTest, CurvesSitWhereTheModelsPutThem) {
   EXPECT_TRUE(colour_at(shot, vignette, 0.8, ((*view->true_vignette)(0.8) - lo) / (hi - lo), colours::ground_truth));
 }
 
+TEST_F(PhotometricPanelTest, LampBeamAndOffsetTakeTheirOwnRow) {
+  Snapshot snapshot;
+  auto view = estimate_view();
+  snapshot.photometric = view;
+  PhotometricPanel without;
+  render(without, snapshot);
+  const float plots_top_without = without.response_plot_rect().min.y;
+  view->lamp_beam = "lamp beam cos^4.82 (half angle 30.0 deg) = halo / lens vignette";
+  view->lamp_offset = "lamp offset (0.000, 0.020, 0.000) +- (0.001, 0.002, 0.001) from 800 points, not applied";
+  PhotometricPanel with;
+  const cv::Mat shot = render(with, snapshot);
+  const float plots_top = with.response_plot_rect().min.y;
+  EXPECT_GT(plots_top, plots_top_without + 8.0f) << "a row for the lamp's beam and offset";
+  // The row holds text: light pixels between the status line and the plots.
+  int bright = 0;
+  for (int y = static_cast<int>(plots_top_without); y < static_cast<int>(plots_top); ++y)
+    for (int x = 10; x < 600; ++x) {
+      const testing::Rgb c = pixel(shot, x, y);
+      if (c.r + c.g + c.b > 300) ++bright;
+    }
+  EXPECT_GT(bright, 100);
+}
+
 TEST_F(PhotometricPanelTest, VignetteMapIsDarkerAtTheCorners) {
   Snapshot snapshot;
   snapshot.photometric = estimate_view();

@@ -118,6 +118,20 @@ void PhotometricPanel::draw_status(const PhotometricView& view) {
   ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.ambiguity.empty() ? "" : view.ambiguity.c_str());
   if (!view.ambiguity.empty() && ImGui::IsItemHovered())
     ImGui::SetTooltip("The response is only known up to f^gamma and a scale: this is how the estimate fixes them");
+  // The beam first: short, so the offset's longer "why not" is what a narrow window clips.
+  if (!view.lamp_beam.empty()) {
+    ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.lamp_beam.c_str());
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("The halo factor divided by the lens vignetting (calibration.lens_vignette): the lamp's beam\n"
+                        "pattern, fitted by cos(alpha)^m");
+    if (!view.lamp_offset.empty()) ImGui::SameLine(0.0f, 16.0f);
+  }
+  if (!view.lamp_offset.empty()) {
+    ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.lamp_offset.c_str());
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("Where the lamp sits relative to the camera centre (camera axes, the odometry's units), from the\n"
+                        "brightness of the window's points across the recent keyframes:\n%s", view.lamp_offset.c_str());
+  }
 }
 
 void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {

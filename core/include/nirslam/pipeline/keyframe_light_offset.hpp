@@ -48,6 +48,11 @@ public:
   // Fits the offset to the points (world frame of the current segment), from `start`.
   LightOffsetEstimate estimate(std::span<const Eigen::Vector3d> points_world, const Eigen::Vector3d& start);
 
+  // A beam exponent learnt later (the halo factor over a known lens vignetting): the keyframes
+  // kept so far were stored with the old one, so they are dropped.
+  void set_beam_exponent(double beam_exponent);
+  double beam_exponent() const { return options_.beam_exponent; }
+
   std::size_t keyframes() const { return views_.size(); }
   void clear();
 

@@ -9,6 +9,7 @@
 // paper's Table 2 columns). Not thread-safe: one thread (the worker's) calls process().
 
 #include <cstdint>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -23,6 +24,7 @@
 #include "nirslam/eval/alignment.hpp"
 #include "nirslam/image/frame.hpp"
 #include "nirslam/odometry/direct_odometry.hpp"
+#include "nirslam/photometric/beam_from_halo.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/pipeline/keyframe_light_offset.hpp"
 #include "nirslam/pipeline/light_distance_map.hpp"
@@ -70,6 +72,10 @@ struct PipelineOptions {
   // not configured, estimated at every keyframe from the recent keyframes (keyframe_light_offset.hpp)
   // and reported; used for the calibration's lamp distances only with apply_estimated_light_offset
   // (off until it is shown to help). beam_exponent < 0: the odometry's configured beam.
+  // The lens vignetting alone (a vignette.png from a calibration with the lamp off): the
+  // calibration's halo factor is then split into it and the lamp's beam (beam_from_halo.hpp),
+  // shown, and the beam's exponent goes to the lamp-offset estimation when none is configured.
+  std::filesystem::path lens_vignette_file;
   bool light_offset_configured = false;
   bool estimate_light_offset = true;
   bool apply_estimated_light_offset = false;
@@ -168,6 +174,10 @@ private:
   std::unique_ptr<KeyframeLightOffset> light_offset_;
   std::optional<LightOffsetEstimate> light_offset_estimate_;
   int light_offset_segment_ = -1;
+  cv::Mat lens_vignette_;           // empty without a lens vignette file
+  std::optional<BeamFit> beam_fit_;  // of the halo factor over it
+  int beam_fit_version_ = -1;       // the model version it was fitted to
+  void fit_beam(const PhotometricEstimate& estimate);
   void estimate_light_offset(const OdometryFrame& input, const OdometryResult& result);
 
   // View state.

@@ -38,6 +38,10 @@ struct PhotometricView {
   // The lamp's distance term (Illuminated mode): from how many odometry points the last frame's
   // distances came, or what it waits for; empty when the mode has no such term.
   std::string lamp_term;
+  // The lamp's offset from the camera centre as estimated (or why not), and its beam split from
+  // the halo factor when the lens vignetting is known; empty when there is none.
+  std::string lamp_offset;
+  std::string lamp_beam;
   // Ground truth, when the source has it (simulator), for the overlays.
   std::optional<ResponseModel> true_response;
   std::optional<VignetteModel> true_vignette;

@@ -78,6 +78,19 @@ double LightOffsetEstimator::log_falloff(const LampObservation& o, const Eigen::
   return f;
 }
 
+std::optional<double> LightOffsetEstimator::mean_albedo(int point, const Eigen::Vector3d& light) const {
+  double sum = 0.0;
+  int count = 0;
+  for (int k = point_start_[point]; k < point_start_[point + 1]; ++k) {
+    const double f = log_falloff(observations_[k], light, nullptr, options_.beam_exponent);
+    if (!std::isfinite(f)) continue;
+    sum += observations_[k].log_irradiance - f;
+    ++count;
+  }
+  if (count < options_.min_observations_per_point) return std::nullopt;
+  return sum / count;
+}
+
 // Cost at `light` with every point's albedo at its (weighted) optimum; the rms of the residuals.
 double LightOffsetEstimator::robust_cost(const Eigen::Vector3d& light, double* rms, double* robust_sigma) const {
   double cost = 0.0, sum_r2 = 0.0;
@@ -85,17 +98,10 @@ double LightOffsetEstimator::robust_cost(const Eigen::Vector3d& light, double* r
   std::vector<double> absolute;
   if (robust_sigma) absolute.reserve(observations_.size());
   for (int p = 0; p + 1 < static_cast<int>(point_start_.size()); ++p) {
-    double sum = 0.0;
-    int count = 0;
-    for (int k = point_start_[p]; k < point_start_[p + 1]; ++k) {
-      const double f = log_falloff(observations_[k], light, nullptr, options_.beam_exponent);
-      if (!std::isfinite(f)) continue;
-      sum += observations_[k].log_irradiance - f;
-      ++count;
-    }
-    if (count < options_.min_observations_per_point) continue;
+    const std::optional<double> mean = mean_albedo(p, light);
+    if (!mean) continue;
     // A median-free albedo: the mean, then the Huber-weighted mean once (outliers barely move it).
-    double albedo = sum / count;
+    double albedo = *mean;
     double weighted = 0.0, weights = 0.0;
     for (int k = point_start_[p]; k < point_start_[p + 1]; ++k) {
       const double f = log_falloff(observations_[k], light, nullptr, options_.beam_exponent);
@@ -160,16 +166,9 @@ LightOffsetEstimate LightOffsetEstimator::estimate(const Eigen::Vector3d& start)
     sum_wr2 = 0.0;
     used = 0;
     for (int p = 0; p + 1 < static_cast<int>(point_start_.size()); ++p) {
-      double sum = 0.0;
-      int count = 0;
-      for (int k = point_start_[p]; k < point_start_[p + 1]; ++k) {
-        const double f = log_falloff(observations_[k], light, nullptr, options_.beam_exponent);
-        if (!std::isfinite(f)) continue;
-        sum += observations_[k].log_irradiance - f;
-        ++count;
-      }
-      if (count < options_.min_observations_per_point) continue;
-      const double albedo = sum / count;
+      const std::optional<double> albedo_mean = mean_albedo(p, light);
+      if (!albedo_mean) continue;
+      const double albedo = *albedo_mean;
       double h_aa = 0.0;
       Eigen::Vector3d h_al = Eigen::Vector3d::Zero();
       Eigen::Matrix3d h_ll = Eigen::Matrix3d::Zero();

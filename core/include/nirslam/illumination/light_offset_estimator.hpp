@@ -99,6 +99,8 @@ public:
 
 private:
   double robust_cost(const Eigen::Vector3d& light, double* rms, double* robust_sigma = nullptr) const;
+  // The mean of l_k - f_k(L) over a point's lit observations; std::nullopt with too few of them.
+  std::optional<double> mean_albedo(int point, const Eigen::Vector3d& light) const;
 
   LightOffsetEstimatorOptions options_;
   std::vector<LampObservation> observations_;

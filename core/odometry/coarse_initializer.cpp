@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <thread>
 
 #include <Eigen/Cholesky>
 
@@ -273,18 +274,39 @@ void CoarseInitializer::load(const Hypothesis& h) {
   points_ = h.points;
 }
 
+void CoarseInitializer::align_hypothesis_range(CoarseInitializer& worker, std::size_t begin, std::size_t end,
+                                               const ImagePyramid& frame, double exposure) {
+  for (std::size_t k = begin; k < end; ++k) {
+    Hypothesis& h = hypotheses_[k];
+    worker.load(h);
+    worker.optimize_levels(frame, exposure);
+    worker.normalise_gauge();
+    std::vector<double> rho(worker.points_.size());
+    for (std::size_t i = 0; i < worker.points_.size(); ++i) rho[i] = worker.points_[i].inverse_depth;
+    worker.update_neighbour_means();
+    h = worker.current_state();
+    h.energy = worker.evaluate(0, frame, exposure, worker.T_frame_first_, worker.a_, worker.b_, rho, false);
+  }
+}
+
 void CoarseInitializer::align_hypotheses(const ImagePyramid& frame, double exposure) {
   std::size_t best = 0;
-  for (std::size_t k = 0; k < hypotheses_.size(); ++k) {
-    Hypothesis& h = hypotheses_[k];
-    load(h);
-    optimize_levels(frame, exposure);
-    normalise_gauge();
-    std::vector<double> rho(points_.size());
-    for (std::size_t i = 0; i < points_.size(); ++i) rho[i] = points_[i].inverse_depth;
-    update_neighbour_means();
-    h = current_state();
-    h.energy = evaluate(0, frame, exposure, T_frame_first_, a_, b_, rho, false);
+  const std::size_t n = hypotheses_.size();
+  if (options_.parallel_hypotheses && n > 1) {
+    // The second half on another thread with its own copy (state and scratch; hypotheses_ is
+    // only written per index, each index by one thread), the first half here.
+    const std::size_t half = (n + 1) / 2;
+    CoarseInitializer copy(cameras_, options_);
+    copy.first_ = first_;
+    copy.first_exposure_ = first_exposure_;
+    copy.neighbours_ = neighbours_;
+    copy.neighbour_mean_ = neighbour_mean_;
+    copy.snapped_ = snapped_;
+    std::thread worker([&] { align_hypothesis_range(copy, half, n, frame, exposure); });
+    align_hypothesis_range(*this, 0, half, frame, exposure);
+    worker.join();
+  } else {
+    align_hypothesis_range(*this, 0, n, frame, exposure);
   }
   // The pre-snap hypothesis (0) is kept unless another explains the frame clearly better: over
   // a small baseline the energies of different structures are close.

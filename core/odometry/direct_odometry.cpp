@@ -714,6 +714,13 @@ std::vector<MapPoint> DirectOdometry::points() const {
   return out;
 }
 
+void DirectOdometry::active_points(std::vector<Eigen::Vector3d>& out) const {
+  out.clear();
+  for (const auto& f : impl_->window->frames())
+    for (const auto& p : f.points)
+      out.push_back(Impl::to_map_point(f, p, impl_->cameras[0], impl_->segment, true).p_world);
+}
+
 void DirectOdometry::reset() {
   const auto& c = impl_->cameras[0];
   const PinholeCamera camera(c.width, c.height, Eigen::Vector4d(c.fx, c.fy, c.cx, c.cy));

@@ -252,11 +252,7 @@ void SlamPipeline::remember_odometry(const OdometryResult& result) {
   previous_pose_ = last_pose_;
   last_pose_ = TrackedPose{result.frame_index, result.segment, *result.T_world_cam};
   // The window's points change only when a keyframe is made (or tracking starts).
-  if (result.is_keyframe || window_points_.empty()) {
-    window_points_.clear();
-    for (const MapPoint& p : odometry_->points())
-      if (p.active && p.segment == result.segment) window_points_.push_back(p.p_world);
-  }
+  if (result.is_keyframe || window_points_.empty()) odometry_->active_points(window_points_);
 }
 
 void SlamPipeline::update_trajectory(const Frame&, const OdometryResult& result) {

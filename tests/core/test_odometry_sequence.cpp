@@ -306,6 +306,15 @@ TEST(OdometrySequence, VispCubeTracksEveryFrameWithoutLoss) {
             << odometry.keyframes().size() << " keyframes\n";
   EXPECT_EQ(lost, 0);
   EXPECT_EQ(static_cast<int>(trajectory.size()), frames);
+  // The window's active points alone: the same as points() filtered to the active ones.
+  std::vector<Eigen::Vector3d> active;
+  odometry.active_points(active);
+  std::vector<Eigen::Vector3d> filtered;
+  for (const MapPoint& p : odometry.points())
+    if (p.active) filtered.push_back(p.p_world);
+  ASSERT_EQ(active.size(), filtered.size());
+  ASSERT_FALSE(active.empty());
+  for (std::size_t i = 0; i < active.size(); ++i) EXPECT_EQ(active[i], filtered[i]) << "point " << i;
 }
 
 }  // namespace

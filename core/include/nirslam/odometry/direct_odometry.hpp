@@ -171,6 +171,10 @@ public:
   std::vector<PoseStamped> trajectory() const;
   std::vector<KeyframeState> keyframes() const;
   std::vector<MapPoint> points() const;  // active and marginalised
+  // The window's active points only (world frame, current segment) into `out` (cleared first):
+  // what the lamp distances and the 3-D view need at every keyframe, without copying the
+  // marginalised ones, which grow with the run.
+  void active_points(std::vector<Eigen::Vector3d>& out) const;
   void reset();
 
   const OdometryOptions& options() const { return options_; }

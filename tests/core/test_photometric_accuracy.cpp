@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,10 @@ SimulatorOptions calibration_sequence(sim::SceneKind scene, ResponsePreset respo
   o.response = ResponseModel::from_preset(response);
   // Variants for diagnosis (the README table uses the defaults above).
   if (const char* swing = std::getenv("NIRSLAM_PHOTOMETRIC_SWING")) o.ae_target_swing = std::atof(swing);
+  // A brighter auto-exposure target (0.55 instead of 0.35 of full scale): the frames then reach
+  // grey 205-255 (99th percentile) instead of 133-254 (PhotometricAccuracy.DiagnoseClipping), so
+  // the data constrain G over most of the scale. Not the default: the table keeps today's rows.
+  if (const char* target = std::getenv("NIRSLAM_PHOTOMETRIC_TARGET_GREY")) o.target_grey = std::atof(target);
   if (const char* texture = std::getenv("NIRSLAM_PHOTOMETRIC_TEXTURE"); texture && std::string(texture) == "pixel")
     o.texture_filtering = TextureFiltering::PixelFootprint;
   if (const char* footprint = std::getenv("NIRSLAM_PHOTOMETRIC_FOOTPRINT")) o.texture_footprint_m = std::atof(footprint);
@@ -101,7 +106,11 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* gauge = std::getenv("NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT")) options.backend.gamma_gauge_weight = std::atof(gauge);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_FREE_VIGNETTE") != nullptr) options.backend.vignette_monotonic = false;
   if (const char* ncc = std::getenv("NIRSLAM_PHOTOMETRIC_MIN_NCC")) options.tracker.min_reference_ncc = std::atof(ncc);
+  if (const char* mu = std::getenv("NIRSLAM_PHOTOMETRIC_MU")) options.backend.gradient_mu = std::atof(mu);
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_CURVATURE")) options.backend.log_curvature_weight = std::atof(w);
+  // Fall-off of the exposure estimator's trust outside the fitted grey range (exposure_estimator.hpp);
+  // 1e9 trusts every grey level (as before the weighting).
+  if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_TRUST_WIDTH")) options.exposure.trust_width_grey = std::atof(w);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
     options.backend.initial_response = sim_options.response;
     options.backend.initial_vignette = sim_options.vignette;
@@ -137,9 +146,11 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   second.run_backend = false;
   second.backend.initial_response = out.estimate->response;
   second.backend.initial_vignette = out.estimate->vignette;
+  second.initial_grey_range = std::make_pair(out.estimate->grey_low, out.estimate->grey_high);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_WITH_TRUTH") != nullptr) {  // diagnosis: the front end alone
     second.backend.initial_response = truth.response;
     second.backend.initial_vignette = truth.vignette;
+    second.initial_grey_range.reset();  // the true G holds at every grey level
   }
   OnlinePhotometricCalibration exposures(second);
   Simulator sim(sim_options);
@@ -150,6 +161,22 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
       exposures.process(frame, true_illumination(sim, *f));
     else
       exposures.process(frame);
+  }
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_TRACE") != nullptr) {  // diagnosis: estimate / truth per frame
+    std::printf("estimate/truth (first = 1), every 5th frame:");
+    std::optional<double> first;
+    for (const ExposureSample& s : exposures.exposure_history()) {
+      const auto it = std::find_if(truth.exposures.begin(), truth.exposures.end(), [&](const auto& p) { return p.first == s.frame_index; });
+      if (!s.estimated || it == truth.exposures.end()) continue;
+      if (!first) first = *s.estimated / it->second;
+      if (s.frame_index % 5 == 0 || s.frame_index < 12) std::printf(" %lld:%.3f(%.2fms)", static_cast<long long>(s.frame_index), *s.estimated / it->second / *first, it->second);
+    }
+    std::printf("\n");
+    const std::vector<double> ge = out.estimate->response.inverse_table(256), gt = truth.response.inverse_table(256);
+    std::printf("G_est / G_true at grey 8, 16, .. 248 (over its value at 96):");
+    for (int i = 8; i < 256; i += 8)
+      std::printf(" %d:%.3f", i, (ge[static_cast<std::size_t>(i)] / gt[static_cast<std::size_t>(i)]) / (ge[96] / gt[96]));
+    std::printf("\n");
   }
   out.errors = compare_with_ground_truth(out.estimate->response, out.estimate->vignette, exposures.exposure_history(),
                                          truth, sim_options.width, sim_options.height);

@@ -238,20 +238,36 @@ TEST(PhotometricAccuracy, RoomConstantRadianceKnownExposures) {
   EXPECT_LT(r.mean_grey, 0.5);
   EXPECT_GT(r.exposure_span, 1.5);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::KnownExposures);
-  // Measured (this test's printout; the back end's G-domain Jacobian and log_curvature_weight 3,
-  // photometric_backend.hpp): response 2.79 / 15.78 grey levels over all 256 levels, 0.67 / 0.99
-  // over the observed 18..144, 0.34 / 0.96 there modulo the irradiance scale (s = 0.980; above
-  // 144 it is extrapolation: auto exposure keeps the frames mid-grey), vignette 0.0069 / 0.059
-  // (0.0187 / 0.076 with the old Jacobian), exposure median 1.13 %. The exposure median meets the
-  // issue's target (< 2 %) and is asserted as such; the response over all levels and the vignette
-  // do not (< 2 and < 0.005) and are pinned with modest slack.
-  EXPECT_LT(r.errors.response_mean_grey, 3.5);
-  EXPECT_LT(r.errors.response_max_grey, 20.0);
-  EXPECT_LT(r.in_range_mean_grey, 1.5);
-  EXPECT_LT(r.in_range_max_grey, 3.0);
-  EXPECT_LT(r.scale_free_mean_grey, 1.0);
-  EXPECT_LT(r.errors.vignette_mean, 0.0105);
+  // Measured (this test's printout, gradient_mu 0.25 and the exposure estimator's trusted grey
+  // range, photometric_backend.hpp / exposure_estimator.hpp): response 2.04 / 11.33 grey levels over
+  // all 256 levels, 0.43 / 0.96 over the observed 18..144, 0.42 / 1.09 there modulo the irradiance
+  // scale (s = 0.998; above 144 it is extrapolation: auto exposure keeps the frames mid-grey),
+  // vignette 0.0030 / 0.0048, exposure median 1.30 %. (With gradient_mu 25: 2.79 / 15.78,
+  // vignette 0.0069, exposure 1.13 %.) The vignette and exposure targets of the issue (< 0.005,
+  // < 2 %) are met and asserted as such; the response over all levels (< 2 / < 10) is not quite.
+  EXPECT_LT(r.errors.response_mean_grey, 2.8);
+  EXPECT_LT(r.errors.response_max_grey, 15.0);
+  EXPECT_LT(r.in_range_mean_grey, 1.0);
+  EXPECT_LT(r.in_range_max_grey, 2.0);
+  EXPECT_LT(r.scale_free_mean_grey, 0.8);
+  EXPECT_LT(r.errors.vignette_mean, 0.005);
   EXPECT_LT(r.errors.exposure_median_relative, 0.02);
+}
+
+// The row whose exposure error was explained (README "Photometric calibration accuracy"): with
+// gradient_mu 25 the fitted G had a flatter log G than the truth (G_est / G_true 1.41 at grey 16,
+// 0.96 at 160, relative to grey 96), and the dark frames of the auto exposure's ramp were read
+// through it: every later frame 12 % off the first. Measured with gradient_mu 0.25 (this test's
+// printout): response 1.97 / 4.89 grey levels, vignette 0.0079, exposure median 3.51 % (mu 25:
+// 6.76 / 17.46, 0.0048, 12.1 %). The exposure target (< 2 %) is not met here yet.
+TEST(PhotometricAccuracy, OutdoorGammaKnownExposures) {
+  const AccuracyRun r = run(constant_radiance(sim::SceneKind::Outdoor, ResponsePreset::Gamma, 150), true);
+  print("outdoor gamma", r);
+  EXPECT_LT(r.errors.response_mean_grey, 3.0);
+  EXPECT_LT(r.errors.response_max_grey, 7.5);
+  EXPECT_LT(r.scale_free_mean_grey, 0.5);
+  EXPECT_LT(r.errors.vignette_mean, 0.012);
+  EXPECT_LT(r.errors.exposure_median_relative, 0.05);
 }
 
 TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
@@ -259,10 +275,10 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
   print("room log normalised", r);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::Normalisation);
   EXPECT_TRUE(std::isfinite(r.errors.response_mean_grey));
-  // The result says how (un)determined the gamma is. Measured: response 16.1 / 61.2 grey levels,
-  // 16.5 after bringing the truth to the estimate's gamma, exposure median 39 % (the exposures
-  // inherit the gamma error as e^g; before the back end's G-domain Jacobian 13.5-14.5, 14.6-14.9
-  // and 136-164 %): far from the issue's targets, which need reported exposures or a power-sweep
+  // The result says how (un)determined the gamma is. Measured: response 19.2 / 75.7 grey levels,
+  // 19.4 after bringing the truth to the estimate's gamma, exposure median 32 % (the exposures
+  // inherit the gamma error as e^g; with gradient_mu 25: 16.1 / 61.2, 16.5, 39 %; before the back
+  // end's G-domain Jacobian 13.5-14.5, 14.6-14.9 and 136-164 %): far from the issue's targets, which need reported exposures or a power-sweep
   // response here. With the gauge penalty of
   // photometric_backend.hpp (NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT=1e3) it is worse: 45 grey levels.
   EXPECT_NE(r.estimate->ambiguity_detail.find("gamma NOT determined"), std::string::npos) << r.estimate->ambiguity_detail;
@@ -272,8 +288,9 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
 
 // Issue 8, calibration side: under the co-located lamp the (d_ref/d)^2 (P/P_ref) factor from the
 // true distances. Measured on room/log (known exposures, CoLitTable's printout): exposure median
-// 73.4 % -> 16.7 %, halo factor 0.141 -> 0.105 against V B (with the back end's old Jacobian
-// 0.305 -> 0.125: the plain run gained most from the new one); the response (12-20 grey levels)
+// 47.9 % -> 16.7 %, halo factor 0.188 -> 0.105 against V B (the plain run without the factor uses
+// gradient_mu 0.25, the run with it lit_gradient_mu 25; with 25 for both the plain run had 73.4 %
+// and 0.141; with the back end's old Jacobian 0.305 -> 0.125); the response (12-55 grey levels)
 // and the halo factor stay far from the issue's targets: see the co-lit table in the README.
 TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   const AccuracyRun plain = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, false);
@@ -281,7 +298,7 @@ TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   print("room co-lit", plain);
   print("room co-lit+d^2", lit);
   EXPECT_LT(lit.errors.exposure_median_relative, 0.2);
-  EXPECT_LT(lit.errors.exposure_median_relative, 0.3 * plain.errors.exposure_median_relative);
+  EXPECT_LT(lit.errors.exposure_median_relative, 0.45 * plain.errors.exposure_median_relative);
   EXPECT_LT(lit.errors.vignette_mean, 0.85 * plain.errors.vignette_mean);
   EXPECT_LT(lit.estimate->residual_rms, 0.75 * plain.estimate->residual_rms);
 }

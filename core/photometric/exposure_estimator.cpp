@@ -10,12 +10,24 @@ namespace nirslam {
 
 namespace {
 
-double median_of(std::vector<double>& values) {
-  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  double m = *middle;
-  if (values.size() % 2 == 0) m = 0.5 * (m + *std::max_element(values.begin(), middle));
-  return m;
+// The value where the cumulative weight of the sorted values reaches half of the total (the mean
+// of the two middle values when it lands exactly on half: with equal weights, the plain median).
+double weighted_median(const std::vector<double>& values, const std::vector<double>& weights,
+                       std::vector<std::pair<double, double>>& buffer) {
+  buffer.clear();
+  double total = 0.0;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    buffer.emplace_back(values[i], weights[i]);
+    total += weights[i];
+  }
+  std::sort(buffer.begin(), buffer.end());
+  double cumulative = 0.0;
+  for (std::size_t i = 0; i < buffer.size(); ++i) {
+    cumulative += buffer[i].second;
+    if (cumulative == 0.5 * total && i + 1 < buffer.size()) return 0.5 * (buffer[i].first + buffer[i + 1].first);
+    if (cumulative >= 0.5 * total) return buffer[i].first;
+  }
+  return buffer.back().first;
 }
 
 }  // namespace
@@ -28,8 +40,18 @@ ExposureEstimator::ExposureEstimator(const ResponseModel& response, const Vignet
   set_model(response, vignette);
 }
 
-void ExposureEstimator::set_model(const ResponseModel& response, const VignetteModel& vignette) {
+void ExposureEstimator::set_model(const ResponseModel& response, const VignetteModel& vignette,
+                                  std::optional<std::pair<double, double>> trusted_grey) {
   inverse_table_ = response.inverse_table(256);
+  grey_weight_.assign(256, 1.0);
+  if (trusted_grey && trusted_grey->second > trusted_grey->first) {
+    const double width = std::max(options_.trust_width_grey, 1e-6);
+    for (int i = 0; i < 256; ++i) {
+      const double outside = std::max({trusted_grey->first - i, i - trusted_grey->second, 0.0});
+      grey_weight_[static_cast<std::size_t>(i)] =
+          std::max(std::exp(-0.5 * (outside / width) * (outside / width)), options_.min_grey_weight);
+    }
+  }
   vignette_ = vignette;
   if (!anchors_.empty()) model_changed_ = true;
   anchors_.clear();
@@ -50,8 +72,15 @@ double ExposureEstimator::inverse_response(double y) const {
   return (1.0 - w) * inverse_table_[static_cast<std::size_t>(i)] + w * inverse_table_[static_cast<std::size_t>(i) + 1];
 }
 
+double ExposureEstimator::grey_weight(double y) const {
+  const double position = std::clamp(y, 0.0, 1.0) * 255.0;
+  const int i = std::min(static_cast<int>(position), 254);
+  const double w = position - i;
+  return (1.0 - w) * grey_weight_[static_cast<std::size_t>(i)] + w * grey_weight_[static_cast<std::size_t>(i) + 1];
+}
+
 bool ExposureEstimator::irradiance_patch(const cv::Mat& intensity, const Eigen::Vector2d& position,
-                                         PatchSamples& irradiance) const {
+                                         PatchSamples& irradiance, PatchSamples& weight) const {
   if (!(position.x() - kPatchRadius >= 0.0 && position.y() - kPatchRadius >= 0.0 &&
         position.x() + kPatchRadius < intensity.cols - 1 && position.y() + kPatchRadius < intensity.rows - 1))
     return false;
@@ -70,8 +99,12 @@ bool ExposureEstimator::irradiance_patch(const cv::Mat& intensity, const Eigen::
       float& out = irradiance[i * kPatchSide + j];
       if (!(valid(row0[0]) && valid(row0[1]) && valid(row1[0]) && valid(row1[1]))) {
         out = -1.0f;
+        weight[i * kPatchSide + j] = 0.0f;
         continue;
       }
+      // The least trusted of the four grey values the sample is interpolated from.
+      weight[i * kPatchSide + j] = static_cast<float>(
+          std::min({grey_weight(row0[0]), grey_weight(row0[1]), grey_weight(row1[0]), grey_weight(row1[1])}));
       const double g = (1.0 - fy) * ((1.0 - fx) * inverse_response(row0[0]) + fx * inverse_response(row0[1])) +
                        fy * ((1.0 - fx) * inverse_response(row1[0]) + fx * inverse_response(row1[1]));
       out = static_cast<float>(g / vignette_(VignetteModel::radius(x, y, intensity.cols, intensity.rows)));
@@ -79,18 +112,22 @@ bool ExposureEstimator::irradiance_patch(const cv::Mat& intensity, const Eigen::
   return true;
 }
 
-bool ExposureEstimator::log_irradiance_ratio(const PatchSamples& now, const PatchSamples& anchor,
-                                             double& log_ratio) const {
-  double sum_now = 0.0, sum_anchor = 0.0;
+bool ExposureEstimator::log_irradiance_ratio(const PatchSamples& now, const PatchSamples& now_weight,
+                                             const PatchSamples& anchor, const PatchSamples& anchor_weight,
+                                             double& log_ratio, double& trust) const {
+  double sum_now = 0.0, sum_anchor = 0.0, sum_weight = 0.0;
   int valid = 0;
   for (int k = 0; k < kPatchPixels; ++k) {
     // A pixel clipped in either frame carries no ratio: skip it in both sums.
     if (now[k] < 0.0f || anchor[k] < 0.0f) continue;
-    sum_now += now[k];
-    sum_anchor += anchor[k];
+    const double w = std::min(now_weight[k], anchor_weight[k]);
+    sum_now += w * now[k];
+    sum_anchor += w * anchor[k];
+    sum_weight += w;
     ++valid;
   }
   if (valid < options_.min_valid_pixels || !(sum_now > 0.0) || !(sum_anchor > 0.0)) return false;
+  trust = sum_weight / valid;
   log_ratio = std::log(sum_now / sum_anchor);
   return std::isfinite(log_ratio);
 }
@@ -100,7 +137,7 @@ void ExposureEstimator::anchor_all(const TrackedFrame& tracked, double log_expos
   for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
     const std::int64_t id = tracked.tracks[i].id;
     if (!irradiance_valid_[i] || (only_new && anchors_.count(id) != 0)) continue;
-    anchors_[id] = Anchor{irradiance_[i], log_exposure, log_illumination ? (*log_illumination)[i] : 0.0};
+    anchors_[id] = Anchor{irradiance_[i], weight_[i], log_exposure, log_illumination ? (*log_illumination)[i] : 0.0};
   }
 }
 
@@ -143,25 +180,28 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
 
   // Drop anchors of tracks the tracker lost; collect each surviving track's candidate log e_t.
   irradiance_.resize(tracked.tracks.size());
+  weight_.resize(tracked.tracks.size());
   irradiance_valid_.assign(tracked.tracks.size(), 0);
   int usable = 0;
   if (!tracked.intensity.empty() && tracked.intensity.type() == CV_32FC1)
     for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
-      irradiance_valid_[i] = irradiance_patch(tracked.intensity, tracked.tracks[i].position, irradiance_[i]);
+      irradiance_valid_[i] = irradiance_patch(tracked.intensity, tracked.tracks[i].position, irradiance_[i], weight_[i]);
       usable += irradiance_valid_[i];
     }
   candidates_.clear();
+  candidate_trust_.clear();
   candidate_ids_.clear();
   std::unordered_map<std::int64_t, Anchor> alive;
   alive.reserve(tracked.tracks.size());
   for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
     const auto it = anchors_.find(tracked.tracks[i].id);
     if (it == anchors_.end()) continue;
-    double log_ratio = 0.0;
+    double log_ratio = 0.0, trust = 1.0;
     const double light_change = log_illumination ? (*log_illumination)[i] - it->second.log_illumination : 0.0;
     if (irradiance_valid_[i] && std::isfinite(light_change) &&
-        log_irradiance_ratio(irradiance_[i], it->second.irradiance, log_ratio)) {
+        log_irradiance_ratio(irradiance_[i], weight_[i], it->second.irradiance, it->second.weight, log_ratio, trust)) {
       candidates_.push_back(it->second.log_exposure + log_ratio - light_change);
+      candidate_trust_.push_back(trust);
       candidate_ids_.push_back(it->first);
     }
     alive.emplace(it->first, it->second);
@@ -198,16 +238,18 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
                     std::to_string(options_.min_tracks) + "); last estimate kept");
 
   // Median, MAD scale, then Huber IRLS: the median alone wastes most of the tracks' information.
-  residuals_ = candidates_;
-  double estimate = median_of(residuals_);
+  // Each candidate counts with its track's trust in G (all 1 without a trusted grey range).
+  double estimate = weighted_median(candidates_, candidate_trust_, sorted_);
+  residuals_.resize(candidates_.size());
   for (std::size_t i = 0; i < candidates_.size(); ++i) residuals_[i] = std::abs(candidates_[i] - estimate);
-  const double sigma = std::max(1.4826 * median_of(residuals_), options_.min_sigma);
+  const double sigma = std::max(1.4826 * weighted_median(residuals_, candidate_trust_, sorted_), options_.min_sigma);
   const double threshold = options_.huber_k * sigma;
   for (int iteration = 0; iteration < 10; ++iteration) {
     double weighted = 0.0, weights = 0.0;
-    for (const double c : candidates_) {
+    for (std::size_t i = 0; i < candidates_.size(); ++i) {
+      const double c = candidates_[i];
       const double r = std::abs(c - estimate);
-      const double w = r <= threshold ? 1.0 : threshold / r;
+      const double w = candidate_trust_[i] * (r <= threshold ? 1.0 : threshold / r);
       weighted += w * c;
       weights += w;
     }

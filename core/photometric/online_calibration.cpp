@@ -32,6 +32,16 @@ PhotometricBackendOptions backend_options(const OnlineCalibrationOptions& option
   return b;
 }
 
+// The grey range over which the exposure estimator trusts G (exposure_estimator.hpp): where the
+// back end fitted it, unless the response is known over all levels (held from a power sweep or
+// not estimated).
+std::optional<std::pair<double, double>> trusted_grey_range(const OnlineCalibrationOptions& options,
+                                                            const PhotometricEstimate& model) {
+  if (options.response_from_power_sweep || !options.backend.estimate_response || !(model.grey_high > model.grey_low))
+    return std::nullopt;
+  return std::make_pair(model.grey_low, model.grey_high);
+}
+
 double milliseconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
@@ -47,6 +57,7 @@ OnlinePhotometricCalibration::OnlinePhotometricCalibration(OnlineCalibrationOpti
   if (options_.queue_capacity < 1 || options_.iterations_per_keyframe < 1 || options_.final_iterations < 1)
     throw std::invalid_argument("online photometric calibration: bad options");
   estimate_ = initial_estimate();
+  exposure_.set_model(estimate_->response, estimate_->vignette, trusted_grey_range(options_, *estimate_));
   inverse_lut_.resize(256);
   const std::vector<double> table = backend_.response().inverse_table(256);
   for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
@@ -74,6 +85,10 @@ std::shared_ptr<const PhotometricEstimate> OnlinePhotometricCalibration::initial
     e->ambiguity_detail = "not yet decided (no keyframe yet)";
   }
   e->status = options_.run_backend ? "no keyframe yet: initial model" : "back end off: initial model held";
+  if (options_.initial_grey_range) {
+    e->grey_low = options_.initial_grey_range->first;
+    e->grey_high = options_.initial_grey_range->second;
+  }
   return e;
 }
 
@@ -128,7 +143,7 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
   // A newer model from the back end: hand it to the exposure estimator and the correction.
   const std::shared_ptr<const PhotometricEstimate> model = estimate();
   if (model->model_version != applied_version_) {
-    exposure_.set_model(model->response, model->vignette);
+    exposure_.set_model(model->response, model->vignette, trusted_grey_range(options_, *model));
     const std::vector<double> table = model->response.inverse_table(256);
     for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
     applied_version_ = model->model_version;
@@ -319,7 +334,7 @@ void OnlinePhotometricCalibration::reset() {
   selector_.reset();
   history_.clear();
   const std::shared_ptr<const PhotometricEstimate> model = estimate();
-  exposure_.set_model(model->response, model->vignette);
+  exposure_.set_model(model->response, model->vignette, trusted_grey_range(options_, *model));
   exposure_.reset();
   const std::vector<double> table = model->response.inverse_table(256);
   for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);

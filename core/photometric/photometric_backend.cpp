@@ -211,11 +211,11 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
     if (a->size() != b->size()) return a->size() > b->size();
     return (*a)[0].second->track_id < (*b)[0].second->track_id;
   });
-  const double mu = options_.gradient_mu;
   // Once some keyframe of the window carries the light's factor, keyframes without it (before the
   // caller had distances) cannot be compared with them: their observations are left out.
   bool modelled = false;
   for (const int k : window) modelled |= keyframes_[static_cast<std::size_t>(k)].illumination_modelled;
+  const double mu = modelled ? options_.lit_gradient_mu : options_.gradient_mu;
   for (const auto* list : usable) {
     if (static_cast<int>(points_.size()) + kBackendPixels > options_.max_points) break;
     for (int k = 0; k < kBackendPixels; ++k) {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,10 @@ SimulatorOptions calibration_sequence(sim::SceneKind scene, ResponsePreset respo
   o.response = ResponseModel::from_preset(response);
   // Variants for diagnosis (the README table uses the defaults above).
   if (const char* swing = std::getenv("NIRSLAM_PHOTOMETRIC_SWING")) o.ae_target_swing = std::atof(swing);
+  // A brighter auto-exposure target (0.55 instead of 0.35 of full scale): the frames then reach
+  // grey 205-255 (99th percentile) instead of 133-254 (PhotometricAccuracy.DiagnoseClipping), so
+  // the data constrain G over most of the scale. Not the default: the table keeps today's rows.
+  if (const char* target = std::getenv("NIRSLAM_PHOTOMETRIC_TARGET_GREY")) o.target_grey = std::atof(target);
   if (const char* texture = std::getenv("NIRSLAM_PHOTOMETRIC_TEXTURE"); texture && std::string(texture) == "pixel")
     o.texture_filtering = TextureFiltering::PixelFootprint;
   if (const char* footprint = std::getenv("NIRSLAM_PHOTOMETRIC_FOOTPRINT")) o.texture_footprint_m = std::atof(footprint);
@@ -101,7 +106,11 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* gauge = std::getenv("NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT")) options.backend.gamma_gauge_weight = std::atof(gauge);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_FREE_VIGNETTE") != nullptr) options.backend.vignette_monotonic = false;
   if (const char* ncc = std::getenv("NIRSLAM_PHOTOMETRIC_MIN_NCC")) options.tracker.min_reference_ncc = std::atof(ncc);
+  if (const char* mu = std::getenv("NIRSLAM_PHOTOMETRIC_MU")) options.backend.gradient_mu = std::atof(mu);
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_CURVATURE")) options.backend.log_curvature_weight = std::atof(w);
+  // Fall-off of the exposure estimator's trust outside the fitted grey range (exposure_estimator.hpp);
+  // 1e9 trusts every grey level (as before the weighting).
+  if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_TRUST_WIDTH")) options.exposure.trust_width_grey = std::atof(w);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
     options.backend.initial_response = sim_options.response;
     options.backend.initial_vignette = sim_options.vignette;
@@ -137,9 +146,11 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   second.run_backend = false;
   second.backend.initial_response = out.estimate->response;
   second.backend.initial_vignette = out.estimate->vignette;
+  second.initial_grey_range = std::make_pair(out.estimate->grey_low, out.estimate->grey_high);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_WITH_TRUTH") != nullptr) {  // diagnosis: the front end alone
     second.backend.initial_response = truth.response;
     second.backend.initial_vignette = truth.vignette;
+    second.initial_grey_range.reset();  // the true G holds at every grey level
   }
   OnlinePhotometricCalibration exposures(second);
   Simulator sim(sim_options);
@@ -150,6 +161,22 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
       exposures.process(frame, true_illumination(sim, *f));
     else
       exposures.process(frame);
+  }
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_TRACE") != nullptr) {  // diagnosis: estimate / truth per frame
+    std::printf("estimate/truth (first = 1), every 5th frame:");
+    std::optional<double> first;
+    for (const ExposureSample& s : exposures.exposure_history()) {
+      const auto it = std::find_if(truth.exposures.begin(), truth.exposures.end(), [&](const auto& p) { return p.first == s.frame_index; });
+      if (!s.estimated || it == truth.exposures.end()) continue;
+      if (!first) first = *s.estimated / it->second;
+      if (s.frame_index % 5 == 0 || s.frame_index < 12) std::printf(" %lld:%.3f(%.2fms)", static_cast<long long>(s.frame_index), *s.estimated / it->second / *first, it->second);
+    }
+    std::printf("\n");
+    const std::vector<double> ge = out.estimate->response.inverse_table(256), gt = truth.response.inverse_table(256);
+    std::printf("G_est / G_true at grey 8, 16, .. 248 (over its value at 96):");
+    for (int i = 8; i < 256; i += 8)
+      std::printf(" %d:%.3f", i, (ge[static_cast<std::size_t>(i)] / gt[static_cast<std::size_t>(i)]) / (ge[96] / gt[96]));
+    std::printf("\n");
   }
   out.errors = compare_with_ground_truth(out.estimate->response, out.estimate->vignette, exposures.exposure_history(),
                                          truth, sim_options.width, sim_options.height);
@@ -211,20 +238,36 @@ TEST(PhotometricAccuracy, RoomConstantRadianceKnownExposures) {
   EXPECT_LT(r.mean_grey, 0.5);
   EXPECT_GT(r.exposure_span, 1.5);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::KnownExposures);
-  // Measured (this test's printout; the back end's G-domain Jacobian and log_curvature_weight 3,
-  // photometric_backend.hpp): response 2.79 / 15.78 grey levels over all 256 levels, 0.67 / 0.99
-  // over the observed 18..144, 0.34 / 0.96 there modulo the irradiance scale (s = 0.980; above
-  // 144 it is extrapolation: auto exposure keeps the frames mid-grey), vignette 0.0069 / 0.059
-  // (0.0187 / 0.076 with the old Jacobian), exposure median 1.13 %. The exposure median meets the
-  // issue's target (< 2 %) and is asserted as such; the response over all levels and the vignette
-  // do not (< 2 and < 0.005) and are pinned with modest slack.
-  EXPECT_LT(r.errors.response_mean_grey, 3.5);
-  EXPECT_LT(r.errors.response_max_grey, 20.0);
-  EXPECT_LT(r.in_range_mean_grey, 1.5);
-  EXPECT_LT(r.in_range_max_grey, 3.0);
-  EXPECT_LT(r.scale_free_mean_grey, 1.0);
-  EXPECT_LT(r.errors.vignette_mean, 0.0105);
+  // Measured (this test's printout, gradient_mu 0.25 and the exposure estimator's trusted grey
+  // range, photometric_backend.hpp / exposure_estimator.hpp): response 2.04 / 11.33 grey levels over
+  // all 256 levels, 0.43 / 0.96 over the observed 18..144, 0.42 / 1.09 there modulo the irradiance
+  // scale (s = 0.998; above 144 it is extrapolation: auto exposure keeps the frames mid-grey),
+  // vignette 0.0030 / 0.0048, exposure median 1.30 %. (With gradient_mu 25: 2.79 / 15.78,
+  // vignette 0.0069, exposure 1.13 %.) The vignette and exposure targets of the issue (< 0.005,
+  // < 2 %) are met and asserted as such; the response over all levels (< 2 / < 10) is not quite.
+  EXPECT_LT(r.errors.response_mean_grey, 2.8);
+  EXPECT_LT(r.errors.response_max_grey, 15.0);
+  EXPECT_LT(r.in_range_mean_grey, 1.0);
+  EXPECT_LT(r.in_range_max_grey, 2.0);
+  EXPECT_LT(r.scale_free_mean_grey, 0.8);
+  EXPECT_LT(r.errors.vignette_mean, 0.005);
   EXPECT_LT(r.errors.exposure_median_relative, 0.02);
+}
+
+// The row whose exposure error was explained (README "Photometric calibration accuracy"): with
+// gradient_mu 25 the fitted G had a flatter log G than the truth (G_est / G_true 1.41 at grey 16,
+// 0.96 at 160, relative to grey 96), and the dark frames of the auto exposure's ramp were read
+// through it: every later frame 12 % off the first. Measured with gradient_mu 0.25 (this test's
+// printout): response 1.97 / 4.89 grey levels, vignette 0.0079, exposure median 3.51 % (mu 25:
+// 6.76 / 17.46, 0.0048, 12.1 %). The exposure target (< 2 %) is not met here yet.
+TEST(PhotometricAccuracy, OutdoorGammaKnownExposures) {
+  const AccuracyRun r = run(constant_radiance(sim::SceneKind::Outdoor, ResponsePreset::Gamma, 150), true);
+  print("outdoor gamma", r);
+  EXPECT_LT(r.errors.response_mean_grey, 3.0);
+  EXPECT_LT(r.errors.response_max_grey, 7.5);
+  EXPECT_LT(r.scale_free_mean_grey, 0.5);
+  EXPECT_LT(r.errors.vignette_mean, 0.012);
+  EXPECT_LT(r.errors.exposure_median_relative, 0.05);
 }
 
 TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
@@ -232,10 +275,10 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
   print("room log normalised", r);
   EXPECT_EQ(r.estimate->ambiguity, AmbiguityResolution::Normalisation);
   EXPECT_TRUE(std::isfinite(r.errors.response_mean_grey));
-  // The result says how (un)determined the gamma is. Measured: response 16.1 / 61.2 grey levels,
-  // 16.5 after bringing the truth to the estimate's gamma, exposure median 39 % (the exposures
-  // inherit the gamma error as e^g; before the back end's G-domain Jacobian 13.5-14.5, 14.6-14.9
-  // and 136-164 %): far from the issue's targets, which need reported exposures or a power-sweep
+  // The result says how (un)determined the gamma is. Measured: response 19.2 / 75.7 grey levels,
+  // 19.4 after bringing the truth to the estimate's gamma, exposure median 32 % (the exposures
+  // inherit the gamma error as e^g; with gradient_mu 25: 16.1 / 61.2, 16.5, 39 %; before the back
+  // end's G-domain Jacobian 13.5-14.5, 14.6-14.9 and 136-164 %): far from the issue's targets, which need reported exposures or a power-sweep
   // response here. With the gauge penalty of
   // photometric_backend.hpp (NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT=1e3) it is worse: 45 grey levels.
   EXPECT_NE(r.estimate->ambiguity_detail.find("gamma NOT determined"), std::string::npos) << r.estimate->ambiguity_detail;
@@ -245,8 +288,9 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
 
 // Issue 8, calibration side: under the co-located lamp the (d_ref/d)^2 (P/P_ref) factor from the
 // true distances. Measured on room/log (known exposures, CoLitTable's printout): exposure median
-// 73.4 % -> 16.7 %, halo factor 0.141 -> 0.105 against V B (with the back end's old Jacobian
-// 0.305 -> 0.125: the plain run gained most from the new one); the response (12-20 grey levels)
+// 47.9 % -> 16.7 %, halo factor 0.188 -> 0.105 against V B (the plain run without the factor uses
+// gradient_mu 0.25, the run with it lit_gradient_mu 25; with 25 for both the plain run had 73.4 %
+// and 0.141; with the back end's old Jacobian 0.305 -> 0.125); the response (12-55 grey levels)
 // and the halo factor stay far from the issue's targets: see the co-lit table in the README.
 TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   const AccuracyRun plain = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, false);
@@ -254,7 +298,7 @@ TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   print("room co-lit", plain);
   print("room co-lit+d^2", lit);
   EXPECT_LT(lit.errors.exposure_median_relative, 0.2);
-  EXPECT_LT(lit.errors.exposure_median_relative, 0.3 * plain.errors.exposure_median_relative);
+  EXPECT_LT(lit.errors.exposure_median_relative, 0.45 * plain.errors.exposure_median_relative);
   EXPECT_LT(lit.errors.vignette_mean, 0.85 * plain.errors.vignette_mean);
   EXPECT_LT(lit.estimate->residual_rms, 0.75 * plain.estimate->residual_rms);
 }

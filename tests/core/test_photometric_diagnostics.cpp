@@ -414,3 +414,70 @@ TEST(PhotometricAccuracy, DiagnoseGeometry) {
 
 }  // namespace
 }  // namespace nirslam
+
+namespace nirslam {
+namespace {
+
+// Lead 1 of issue 6's scale problem: do the accuracy sequences (PhotometricAccuracy.Table's
+// constant-radiance settings) reach saturation at all? Clipped samples could fix the irradiance
+// scale as one-sided constraints only if there are some. Prints, per scene and response, over the
+// frames after the auto exposure's ramp (frame >= 15) and over all frames: the fraction of pixels
+// at or above the back end's saturation level (0.97) and at 255, the 99th / 99.9th percentile
+// and the maximum grey value.
+//   NIRSLAM_PHOTOMETRIC_CLIPPING=1 [NIRSLAM_DIAG_TARGET_GREY=0.5] nirslam_core_tests
+//     --gtest_filter=PhotometricAccuracy.DiagnoseClipping
+TEST(PhotometricAccuracy, DiagnoseClipping) {
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_CLIPPING") == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_CLIPPING=1";
+  for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
+    for (const ResponsePreset preset : {ResponsePreset::Linear, ResponsePreset::Gamma, ResponsePreset::Log, ResponsePreset::Filmic}) {
+      SimulatorOptions o;
+      o.scene = scene;
+      o.width = 320;
+      o.height = 240;
+      o.supersampling = 1;
+      o.frames = 150;
+      o.texture_filtering = TextureFiltering::DistanceIndependent;
+      o.exposure_mode = ExposureMode::Auto;
+      o.exposure_ms = 2.0;
+      o.response = ResponseModel::from_preset(preset);
+      o.powers_w = {0.0};
+      o.ambient_irradiance = 0.4;
+      if (const char* t = std::getenv("NIRSLAM_DIAG_TARGET_GREY")) o.target_grey = std::atof(t);
+      Simulator sim(o);
+      std::array<std::int64_t, 256> settled{}, all{};
+      while (auto f = sim.next()) {
+        cv::Mat grey8;
+        if (f->frame.image.depth() == CV_8U) grey8 = f->frame.image;
+        else f->frame.image.convertTo(grey8, CV_8U, 255.0 / f->frame.max_value());
+        for (int y = 0; y < grey8.rows; ++y)
+          for (int x = 0; x < grey8.cols; ++x) {
+            const int g = grey8.at<std::uint8_t>(y, x);
+            ++all[static_cast<std::size_t>(g)];
+            if (f->frame.index >= 15) ++settled[static_cast<std::size_t>(g)];
+          }
+      }
+      const auto describe = [](const std::array<std::int64_t, 256>& h, char* out, std::size_t n) {
+        std::int64_t total = 0, at_sat = 0;
+        for (int g = 0; g < 256; ++g) total += h[static_cast<std::size_t>(g)];
+        for (int g = 248; g < 256; ++g) at_sat += h[static_cast<std::size_t>(g)];
+        int p99 = 0, p999 = 0, max = 0;
+        std::int64_t c = 0;
+        for (int g = 0; g < 256; ++g) {
+          c += h[static_cast<std::size_t>(g)];
+          if (c < 0.99 * total) p99 = g + 1;
+          if (c < 0.999 * total) p999 = g + 1;
+          if (h[static_cast<std::size_t>(g)] > 0) max = g;
+        }
+        std::snprintf(out, n, ">=0.97 %.4f %% =255 %.4f %% p99 %3d p99.9 %3d max %3d", 100.0 * at_sat / total,
+                      100.0 * h[255] / total, p99, p999, max);
+      };
+      char a[160], b[160];
+      describe(settled, a, sizeof a);
+      describe(all, b, sizeof b);
+      std::printf("%-8s %-7s target %.2f | frames 15+: %s | all: %s\n", sim::to_string(scene).data(),
+                  std::string(to_string(preset)).c_str(), o.target_grey, a, b);
+    }
+}
+
+}  // namespace
+}  // namespace nirslam

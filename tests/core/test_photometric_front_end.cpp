@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -226,6 +228,39 @@ TEST(ExposureEstimator, CoLocatedIlluminatorWithTrueDistances) {
   EXPECT_LT(lit.median, 0.03);
   EXPECT_LT(lit.max, 0.06);
   EXPECT_LT(lit.median, 0.05 * plain.median);
+}
+
+// The trusted grey range (exposure_estimator.hpp): pixels whose grey value lies outside the range
+// the response was fitted over are down-weighted. Frames through a LINEAR response (16-bit grey =
+// irradiance), read with the log preset: a 5 % exposure step then looks like a log ratio of about
+// 1.4 x log(1.05) on dark patches (grey 0.1-0.28 of full scale) and 2.7 x on bright ones (0.5-0.85),
+// since d log G / d log y of the log curve grows with y. The dark third of the image alone is
+// trusted: the estimate must follow its tracks, while without a range the bright majority wins.
+TEST(ExposureEstimator, TrustedGreyRangeFollowsTheTrustedPatches) {
+  cv::Mat base = texture(240, 200, 11);
+  for (int y = 0; y < base.rows; ++y)
+    for (int x = 0; x < base.cols; ++x) {
+      float& v = base.at<float>(y, x);
+      v = x < base.cols / 3 ? 0.5f * v + 0.05f : v + 0.4f;  // [0.1, 0.275] left, [0.5, 0.85] right
+    }
+  const ResponseModel log_response = ResponseModel::from_preset(ResponsePreset::Log);
+  const auto log_ratio_of = [&](std::optional<std::pair<double, double>> trusted) {
+    PhotometricTracker tracker;
+    ExposureEstimator estimator(log_response, VignetteModel{});
+    estimator.set_model(log_response, VignetteModel{}, trusted);
+    estimator.update(tracker.process(make_frame(shifted(base, Eigen::Vector2d::Zero(), 1.0), 16, 0, std::nullopt)));
+    const ExposureEstimate& e =
+        estimator.update(tracker.process(make_frame(shifted(base, Eigen::Vector2d::Zero(), 1.05), 16, 1, std::nullopt)));
+    EXPECT_EQ(e.status, ExposureStatus::Estimated) << e.reason;
+    return e.log_exposure_ratio / std::log(1.05);
+  };
+  const double all = log_ratio_of(std::nullopt);
+  const double dark = log_ratio_of(std::make_pair(0.0, 0.3 * 255.0));
+  std::printf("log ratio / log 1.05: every grey level trusted %.3f, grey 0..77 trusted %.3f\n", all, dark);
+  // The log curve's d log G / d log y is 1.2-1.6 over the dark texture, 2.3-3.0 over the bright.
+  EXPECT_GT(all, 2.2);
+  EXPECT_GT(dark, 1.1);
+  EXPECT_LT(dark, 1.7);
 }
 
 class ExposureDegenerate : public ::testing::Test {

@@ -22,6 +22,18 @@
 // anchored track is lost (a black frame in between), the chain restarts at the frame's reported
 // exposure if there is one, else at the last estimate, and the status says so.
 //
+// Trusted grey range: the back end fits G only where its samples lie (BackendStep::grey_low ..
+// grey_high, the 1st-99th percentile); outside, G is the basis's extrapolation, which the data do
+// not constrain (photometric_backend.hpp: with no frame near saturation G is fixed only up to an
+// irradiance scale inside the range, and may bend anywhere above it). A bright pixel read through
+// the extrapolated part biases its track's ratio whenever its grey value changes between the
+// anchor and now. Given the range (set_model's third argument), every pixel gets a weight
+// w(I) = 1 inside it and exp(-d^2 / (2 width^2)) at d grey levels outside (floored at
+// min_grey_weight, so no frame loses its estimate: a hard cut lost every estimate on two linear
+// rows); a track's ratio is sum w G_t / sum w G_anchor with w the smaller of the pixel's two
+// weights (the same weights on both sides, so the ratio stays unbiased where G is right), and the
+// track's candidate enters the robust mean with its mean pixel weight.
+//
 // Under a co-located light a track's radiance changes with its distance to the lamp and the
 // lamp's power: given per-track factors (illumination_factor.hpp), the estimator removes that
 // change before comparing with the anchor (see update()).
@@ -30,6 +42,7 @@
 #include <optional>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "nirslam/photometric/photometric_tracker.hpp"
@@ -58,6 +71,8 @@ struct ExposureEstimatorOptions {
   double huber_k = 1.345;              // in robust standard deviations
   double outlier_sigmas = 4.0;         // re-anchor tracks farther off than this
   double min_sigma = 1e-3;             // floor of the robust scale (log units)
+  double trust_width_grey = 8.0;       // width of the weight's fall-off outside the trusted grey range
+  double min_grey_weight = 1e-3;       // its floor
 };
 
 struct ExposureEstimate {
@@ -82,7 +97,10 @@ public:
   // New response / vignette from the back end. Anchors hold irradiance under the old model, so
   // they are dropped and the next frame restarts the chain at the last estimate (status
   // Restarted, reason says so): a ratio with the old model on one end would be biased.
-  void set_model(const ResponseModel& response, const VignetteModel& vignette);
+  // `trusted_grey`: the grey range (0..255) the response was fitted over (see above); without it
+  // every grey level has weight 1.
+  void set_model(const ResponseModel& response, const VignetteModel& vignette,
+                 std::optional<std::pair<double, double>> trusted_grey = std::nullopt);
 
   const ExposureEstimate& update(const TrackedFrame& tracked);
   // With a co-located light (illumination_factor.hpp): `log_illumination` holds each track's
@@ -97,31 +115,39 @@ public:
 
   // G(y) for y in fraction of full scale, in grey-level units (256-entry table, interpolated).
   double inverse_response(double y) const;
+  // The weight of grey value y (fraction of full scale) under the trusted range (see above).
+  double grey_weight(double y) const;
 
 private:
   struct Anchor {
     PatchSamples irradiance;  // G(I)/V, -1 where clipped
+    PatchSamples weight;      // trust in G at each pixel's grey value (see above)
     double log_exposure = 0.0;
     double log_illumination = 0.0;  // log(P / d^2) when anchored (0 without a light model)
   };
   // G(I)/V at the patch pixels around `position`, -1 where a grey value is clipped; false when
   // the patch does not fit in the image.
-  bool irradiance_patch(const cv::Mat& intensity, const Eigen::Vector2d& position, PatchSamples& irradiance) const;
-  // log of the ratio of the patch irradiance sums over the pixels valid in both; false when too few.
-  bool log_irradiance_ratio(const PatchSamples& now, const PatchSamples& anchor, double& log_ratio) const;
+  bool irradiance_patch(const cv::Mat& intensity, const Eigen::Vector2d& position, PatchSamples& irradiance,
+                        PatchSamples& weight) const;
+  // log of the ratio of the weighted patch irradiance sums over the pixels valid in both, and the
+  // mean weight of those pixels; false when too few.
+  bool log_irradiance_ratio(const PatchSamples& now, const PatchSamples& now_weight, const PatchSamples& anchor,
+                            const PatchSamples& anchor_weight, double& log_ratio, double& trust) const;
   void anchor_all(const TrackedFrame& tracked, double log_exposure, bool only_new,
                   const std::vector<double>* log_illumination);
   const ExposureEstimate& keep(const TrackedFrame& tracked, ExposureStatus status, std::string reason);
 
   ExposureEstimatorOptions options_;
   std::vector<double> inverse_table_;  // G[i], grey-level units, i = 0..255
+  std::vector<double> grey_weight_;    // w[i], i = 0..255 (all 1 without a trusted range)
   VignetteModel vignette_;
   std::unordered_map<std::int64_t, Anchor> anchors_;
   std::optional<double> log_exposure_;
   ExposureEstimate last_;
-  std::vector<double> candidates_, residuals_;  // reused buffers
+  std::vector<double> candidates_, residuals_, candidate_trust_;  // reused buffers
   std::vector<std::int64_t> candidate_ids_;
-  std::vector<PatchSamples> irradiance_;  // of tracked.tracks, this frame
+  std::vector<std::pair<double, double>> sorted_;  // (value, weight), for the weighted medians
+  std::vector<PatchSamples> irradiance_, weight_;  // of tracked.tracks, this frame
   std::vector<char> irradiance_valid_;
   bool model_changed_ = false;
   bool illumination_modelled_ = false;  // the last frame came with light factors

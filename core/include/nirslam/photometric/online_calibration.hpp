@@ -35,6 +35,7 @@
 #include <string>
 #include <string_view>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core/mat.hpp>
@@ -102,6 +103,12 @@ struct OnlineCalibrationOptions {
   int final_iterations = 60;          // finish(): over every stored keyframe
   bool correct_images = true;         // compute CorrectedFrame::irradiance
   bool run_backend = true;            // false: front end only, with the initial model held
+  // The grey range (0..255) the held initial response was fitted over (PhotometricEstimate::
+  // grey_low / grey_high of the run that estimated it): the exposure estimator then trusts G
+  // inside it and down-weights pixels outside (exposure_estimator.hpp). With the back end on,
+  // each estimate's own range is used; without either (or with a power-sweep response, known
+  // over all levels) every grey level is trusted.
+  std::optional<std::pair<double, double>> initial_grey_range;
 };
 
 class OnlinePhotometricCalibration {

@@ -117,6 +117,8 @@ int run_calibrate(const CalibrateOptions& options) {
   second.backend.initial_response = estimate->response;
   second.backend.initial_vignette = estimate->vignette;
   second.backend.estimate_response = false;
+  // The exposure estimator trusts G where the fit saw data (the extrapolated ends are down-weighted).
+  if (estimate->grey_high > estimate->grey_low) second.initial_grey_range = {estimate->grey_low, estimate->grey_high};
   OnlinePhotometricCalibration exposures(second);
   source->rewind();
   while (std::optional<Frame> frame = source->next()) {

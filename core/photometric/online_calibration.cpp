@@ -102,12 +102,49 @@ std::int64_t OnlinePhotometricCalibration::keyframes_dropped() const {
   return dropped_;
 }
 
+void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& model) {
+  const bool first = correction_version_ < 0;
+  double largest = 0.0;
+  if (!first && options_.max_correction_step_log > 0.0) {
+    // How far the estimate is from the correction model, in log G over the grey range the fit
+    // saw (outside it G is extrapolated and not what the frames mostly show) and in log V.
+    const double low = model.grey_high > model.grey_low ? std::max(model.grey_low, 2.0) : 8.0;
+    const double high = model.grey_high > model.grey_low ? std::min(model.grey_high, 253.0) : 247.0;
+    for (double g = low; g <= high; g += (high - low) / 32.0) {
+      const double now = correction_response_.inverse(g / 255.0), target = model.response.inverse(g / 255.0);
+      if (now > 0.0 && target > 0.0) largest = std::max(largest, std::abs(std::log(target / now)));
+    }
+    for (double r = 0.0; r <= 1.0; r += 1.0 / 32.0) {
+      const double now = correction_vignette_(r), target = model.vignette(r);
+      if (now > 0.0 && target > 0.0) largest = std::max(largest, std::abs(std::log(target / now)));
+    }
+  }
+  const bool same = !first && correction_response_.coefficients() == model.response.coefficients() &&
+                    correction_vignette_.v == model.vignette.v;
+  if (same) return;
+  // Both models are linear in their coefficients, so a step along the coefficients is a blend of
+  // two monotonic curves (itself monotonic) and of two vignettes.
+  const double t = first || largest <= options_.max_correction_step_log || options_.max_correction_step_log <= 0.0
+                       ? 1.0
+                       : options_.max_correction_step_log / largest;
+  correction_response_ = ResponseModel(correction_response_.coefficients() +
+                                       t * (model.response.coefficients() - correction_response_.coefficients()));
+  correction_vignette_.v += t * (model.vignette.v - correction_vignette_.v);
+  if (t == 1.0) {
+    correction_response_ = model.response;
+    correction_vignette_ = model.vignette;
+  }
+  const std::vector<double> table = correction_response_.inverse_table(256);
+  for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
+  ++correction_version_;
+}
+
 void OnlinePhotometricCalibration::correct(const Frame& frame, const TrackedFrame& tracked, cv::Mat& out) {
-  const int version = applied_version_;
+  follow_estimate(*estimate());
+  const int version = correction_version_;
   if (inverse_vignette_version_ != version || inverse_vignette_.cols != frame.width() ||
       inverse_vignette_.rows != frame.height()) {
-    const VignetteModel vignette = estimate()->vignette;
-    inverse_vignette_ = vignette.render(frame.width(), frame.height());
+    inverse_vignette_ = correction_vignette_.render(frame.width(), frame.height());
     cv::divide(1.0, inverse_vignette_, inverse_vignette_);
     inverse_vignette_version_ = version;
   }
@@ -144,8 +181,6 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
   const std::shared_ptr<const PhotometricEstimate> model = estimate();
   if (model->model_version != applied_version_) {
     exposure_.set_model(model->response, model->vignette, trusted_grey_range(options_, *model));
-    const std::vector<double> table = model->response.inverse_table(256);
-    for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
     applied_version_ = model->model_version;
   }
 
@@ -340,6 +375,7 @@ void OnlinePhotometricCalibration::reset() {
   for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
   applied_version_ = model->model_version;
   inverse_vignette_version_ = -1;
+  correction_version_ = -1;  // a new start: the next frame is corrected with the estimate as it is
 }
 
 }  // namespace nirslam

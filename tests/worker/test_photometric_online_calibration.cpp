@@ -2,7 +2,10 @@
 // its own; estimate() read from a third thread. In the worker suite so CI runs it under
 // ThreadSanitizer.
 #include <atomic>
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <vector>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -72,6 +75,58 @@ TEST(PhotometricOnlineCalibration, BackgroundBackEndPublishesWhileAReaderPolls) 
   calibration.reset();
   EXPECT_EQ(calibration.estimate()->model_version, 0);
   EXPECT_TRUE(calibration.exposure_history().empty());
+}
+
+// The corrected frames follow a new estimate in bounded steps (the odometry compares frames
+// corrected over a second or more), and reach it.
+TEST(PhotometricOnlineCalibration, CorrectionFollowsTheEstimateInBoundedSteps) {
+  OnlineCalibrationOptions options;
+  options.background_thread = false;
+  options.max_correction_step_log = 0.05;
+  OnlinePhotometricCalibration calibration(options);
+  Simulator sim(small_room(80));
+  std::vector<Frame> frames;
+  while (auto f = sim.next()) frames.push_back(f->frame);
+  // Over the grey range the fit saw (outside it G is extrapolated and the frames seldom go).
+  auto largest_step = [&](const ResponseModel& a, const ResponseModel& b, const VignetteModel& va, const VignetteModel& vb) {
+    const auto e = calibration.estimate();
+    const double low = e->grey_high > e->grey_low ? std::max(e->grey_low, 2.0) : 8.0;
+    const double high = e->grey_high > e->grey_low ? std::min(e->grey_high, 253.0) : 247.0;
+    double largest = 0.0;
+    for (double g = low; g <= high; g += (high - low) / 16.0)
+      largest = std::max(largest, std::abs(std::log(a.inverse(g / 255.0) / b.inverse(g / 255.0))));
+    for (double r = 0.0; r <= 1.0; r += 0.125) largest = std::max(largest, std::abs(std::log(va(r) / vb(r))));
+    return largest;
+  };
+  // The first frame is corrected with the estimate as it is (the initial model).
+  calibration.process(frames.front());
+  EXPECT_EQ(calibration.correction_response().coefficients(), calibration.estimate()->response.coefficients());
+  ResponseModel previous = calibration.correction_response();
+  VignetteModel previous_vignette = calibration.correction_vignette();
+  double worst = 0.0;
+  int moved = 0;
+  auto run = [&](const Frame& frame) {
+    calibration.process(frame);
+    const double step = largest_step(calibration.correction_response(), previous, calibration.correction_vignette(),
+                                     previous_vignette);
+    worst = std::max(worst, step);
+    moved += step > 0.0;
+    previous = calibration.correction_response();
+    previous_vignette = calibration.correction_vignette();
+  };
+  for (std::size_t i = 1; i < frames.size(); ++i) run(frames[i]);
+  calibration.finish();
+  const auto e = calibration.estimate();
+  ASSERT_GT(e->model_version, 0) << e->status;
+  std::printf("largest correction step %.4f (limit %.2f), %d frames moved it\n", worst, options.max_correction_step_log, moved);
+  // A step along the coefficients is not exactly proportional in log G: some slack.
+  EXPECT_LT(worst, 2.0 * options.max_correction_step_log);
+  EXPECT_GT(moved, 3) << "the estimate moved away from the start: several steps";
+  for (int i = 0; i < 400 && largest_step(calibration.correction_response(), e->response, calibration.correction_vignette(),
+                                            e->vignette) > 0.0; ++i)
+    run(frames[static_cast<std::size_t>(i) % frames.size()]);
+  EXPECT_EQ(calibration.correction_response().coefficients(), calibration.estimate()->response.coefficients());
+  EXPECT_EQ(calibration.correction_vignette().v, calibration.estimate()->vignette.v);
 }
 
 TEST(PhotometricOnlineCalibration, DegenerateFramesKeepTheLastEstimateNeverNaN) {

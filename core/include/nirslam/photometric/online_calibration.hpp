@@ -102,6 +102,12 @@ struct OnlineCalibrationOptions {
   int iterations_per_keyframe = 4;    // LM iterations per back-end update
   int final_iterations = 60;          // finish(): over every stored keyframe
   bool correct_images = true;         // compute CorrectedFrame::irradiance
+  // The model the corrected frames use follows the estimate by at most this change of log G
+  // (over the grey range the fit saw) and log V per frame. The odometry compares frames
+  // corrected over its whole window (a second or more): a new estimate adopted at once (the
+  // first one after the response becomes observable moves G by a factor of 20 at the dark end)
+  // breaks brightness constancy there and tracking with it. 0: adopt every estimate at once.
+  double max_correction_step_log = 0.01;
   bool run_backend = true;            // false: front end only, with the initial model held
   // The grey range (0..255) the held initial response was fitted over (PhotometricEstimate::
   // grey_low / grey_high of the run that estimated it): the exposure estimator then trusts G
@@ -129,6 +135,9 @@ public:
   std::shared_ptr<const PhotometricEstimate> estimate() const;
   // Per processed frame, caller's thread.
   const std::vector<ExposureSample>& exposure_history() const { return history_; }
+  // The model the last corrected frame used (it follows estimate(), max_correction_step_log).
+  const ResponseModel& correction_response() const { return correction_response_; }
+  const VignetteModel& correction_vignette() const { return correction_vignette_; }
   std::int64_t keyframes_dropped() const;
   void reset();
   // Batch mode: waits for the back end to process everything queued, then runs a final full
@@ -157,9 +166,14 @@ private:
   std::vector<ExposureSample> history_;
   std::vector<double> log_illumination_;  // per track of the current frame
   int applied_version_ = 0;
-  std::vector<float> inverse_lut_;   // G at 256 grey levels
-  cv::Mat inverse_vignette_;         // 1 / V, for the current size and model
+  std::vector<float> inverse_lut_;   // G at 256 grey levels, of the correction model
+  cv::Mat inverse_vignette_;         // 1 / V, for the current size and correction model
   int inverse_vignette_version_ = -1;
+  // The model the frames are corrected with, moving towards the estimate (max_correction_step_log).
+  ResponseModel correction_response_;
+  VignetteModel correction_vignette_;
+  int correction_version_ = -1;      // increments whenever the correction model moves
+  void follow_estimate(const PhotometricEstimate& model);
 
   // Back-end thread (or the caller's when background_thread is false).
   PhotometricBackend backend_;

@@ -104,6 +104,9 @@ std::int64_t OnlinePhotometricCalibration::keyframes_dropped() const {
 
 void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& model) {
   const bool first = correction_version_ < 0;
+  if (!first && correction_response_.coefficients() == model.response.coefficients() &&
+      correction_vignette_.v == model.vignette.v)
+    return;  // caught up: nothing to measure
   double largest = 0.0;
   if (!first && options_.max_correction_step_log > 0.0) {
     // How far the estimate is from the correction model, in log G over the grey range the fit
@@ -119,9 +122,6 @@ void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& mo
       if (now > 0.0 && target > 0.0) largest = std::max(largest, std::abs(std::log(target / now)));
     }
   }
-  const bool same = !first && correction_response_.coefficients() == model.response.coefficients() &&
-                    correction_vignette_.v == model.vignette.v;
-  if (same) return;
   // Both models are linear in their coefficients, so a step along the coefficients is a blend of
   // two monotonic curves (itself monotonic) and of two vignettes.
   const double t = first || largest <= options_.max_correction_step_log || options_.max_correction_step_log <= 0.0

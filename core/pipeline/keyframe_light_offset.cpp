@@ -31,7 +31,8 @@ KeyframeLightOffset::KeyframeLightOffset(const PinholeCamera& camera, KeyframeLi
 
 void KeyframeLightOffset::set_beam_exponent(double beam_exponent) {
   // Small changes (each back-end update moves the halo a little) keep what is stored.
-  if (!beam_by_pixel_.empty() && std::abs(beam_exponent - options_.beam_exponent) < 0.1) return;
+  if (beam_set_ && std::abs(beam_exponent - options_.beam_exponent) < 0.1) return;
+  beam_set_ = true;
   views_.clear();
   options_.beam_exponent = beam_exponent;
   options_.estimator.beam_exponent = beam_exponent;

@@ -67,6 +67,7 @@ private:
   std::deque<View> views_;
   int segment_ = -1;
   cv::Mat beam_by_pixel_;  // B at each pixel's angle off the axis (m > 0)
+  bool beam_set_ = false;
   std::vector<LampObservation> seen_;
 };
 

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+#include <vector>
 
 #include <Eigen/Dense>
 #include <fmt/format.h>
@@ -40,9 +41,10 @@ BeamFit fit_beam_from_halo(const cv::Mat& halo_in, const cv::Mat& vignette_in, c
     fit.reason = "an image is black";
     return fit;
   }
-  // Linear least squares in (log_scale, m): log(H / V) = log_scale + m log cos(alpha).
-  Eigen::Matrix2d normal = Eigen::Matrix2d::Zero();
-  Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
+  // Samples (log cos(alpha), log(H / V)) in one pass; then linear least squares in
+  // (log_scale, m): log(H / V) = log_scale + m log cos(alpha).
+  std::vector<Eigen::Vector2d> samples;
+  samples.reserve(static_cast<std::size_t>((halo.rows / step + 1) * (halo.cols / step + 1)));
   double min_cos = 1.0;
   for (int y = step / 2; y < halo.rows; y += step)
     for (int x = step / 2; x < halo.cols; x += step) {
@@ -52,12 +54,10 @@ BeamFit fit_beam_from_halo(const cv::Mat& halo_in, const cv::Mat& vignette_in, c
       if (!ray) continue;
       const double cos_alpha = ray->normalized().z();
       if (!(cos_alpha > 0.0)) continue;
-      const Eigen::Vector2d a(1.0, std::log(cos_alpha));
-      normal += a * a.transpose();
-      rhs += a * std::log(h / v);
+      samples.emplace_back(std::log(cos_alpha), std::log(h / v));
       min_cos = std::min(min_cos, cos_alpha);
-      ++fit.samples;
     }
+  fit.samples = static_cast<int>(samples.size());
   fit.max_alpha_deg = std::acos(min_cos) * 180.0 / std::numbers::pi;
   // Below ~10 degrees cos(alpha)^m hardly differs from 1: nothing to fit.
   if (fit.samples < 50 || fit.max_alpha_deg < 10.0) {
@@ -65,19 +65,21 @@ BeamFit fit_beam_from_halo(const cv::Mat& halo_in, const cv::Mat& vignette_in, c
                              fit.samples, fit.max_alpha_deg);
     return fit;
   }
-  const Eigen::Vector2d x = normal.ldlt().solve(rhs);
-  fit.log_scale = x[0];
-  fit.beam_exponent = x[1];
+  Eigen::Matrix2d normal = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector2d& sample : samples) {
+    const Eigen::Vector2d a(1.0, sample.x());
+    normal += a * a.transpose();
+    rhs += a * sample.y();
+  }
+  const Eigen::Vector2d solution = normal.ldlt().solve(rhs);
+  fit.log_scale = solution[0];
+  fit.beam_exponent = solution[1];
   double sum_r2 = 0.0;
-  for (int y = step / 2; y < halo.rows; y += step)
-    for (int xx = step / 2; xx < halo.cols; xx += step) {
-      const double h = halo.at<float>(y, xx), v = vignette.at<float>(y, xx);
-      if (!(h > min_value * halo_max) || !(v > min_value * vignette_max)) continue;
-      const auto ray = camera.unproject(Eigen::Vector2d(xx, y));
-      if (!ray || !(ray->normalized().z() > 0.0)) continue;
-      const double r = std::log(h / v) - fit.log_scale - fit.beam_exponent * std::log(ray->normalized().z());
-      sum_r2 += r * r;
-    }
+  for (const Eigen::Vector2d& sample : samples) {
+    const double r = sample.y() - fit.log_scale - fit.beam_exponent * sample.x();
+    sum_r2 += r * r;
+  }
   fit.rms_log = std::sqrt(sum_r2 / fit.samples);
   if (!(fit.beam_exponent > 0.0)) {
     fit.reason = fmt::format("the halo factor is not darker than the lens vignetting off the axis (m = {:.2f}): no "

@@ -30,6 +30,14 @@ double weighted_median(const std::vector<double>& values, const std::vector<doub
   return buffer.back().first;
 }
 
+// A 256-entry table over grey levels at y (fraction of full scale), linearly interpolated.
+double interpolate_grey_table(const std::vector<double>& table, double y) {
+  const double position = std::clamp(y, 0.0, 1.0) * 255.0;
+  const int i = std::min(static_cast<int>(position), 254);
+  const double w = position - i;
+  return (1.0 - w) * table[static_cast<std::size_t>(i)] + w * table[static_cast<std::size_t>(i) + 1];
+}
+
 }  // namespace
 
 ExposureEstimator::ExposureEstimator(const ResponseModel& response, const VignetteModel& vignette,
@@ -65,19 +73,9 @@ void ExposureEstimator::reset() {
   last_ = {};
 }
 
-double ExposureEstimator::inverse_response(double y) const {
-  const double position = std::clamp(y, 0.0, 1.0) * 255.0;
-  const int i = std::min(static_cast<int>(position), 254);
-  const double w = position - i;
-  return (1.0 - w) * inverse_table_[static_cast<std::size_t>(i)] + w * inverse_table_[static_cast<std::size_t>(i) + 1];
-}
+double ExposureEstimator::inverse_response(double y) const { return interpolate_grey_table(inverse_table_, y); }
 
-double ExposureEstimator::grey_weight(double y) const {
-  const double position = std::clamp(y, 0.0, 1.0) * 255.0;
-  const int i = std::min(static_cast<int>(position), 254);
-  const double w = position - i;
-  return (1.0 - w) * grey_weight_[static_cast<std::size_t>(i)] + w * grey_weight_[static_cast<std::size_t>(i) + 1];
-}
+double ExposureEstimator::grey_weight(double y) const { return interpolate_grey_table(grey_weight_, y); }
 
 bool ExposureEstimator::irradiance_patch(const cv::Mat& intensity, const Eigen::Vector2d& position,
                                          PatchSamples& irradiance, PatchSamples& weight) const {

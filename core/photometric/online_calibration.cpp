@@ -58,9 +58,7 @@ OnlinePhotometricCalibration::OnlinePhotometricCalibration(OnlineCalibrationOpti
     throw std::invalid_argument("online photometric calibration: bad options");
   estimate_ = initial_estimate();
   exposure_.set_model(estimate_->response, estimate_->vignette, trusted_grey_range(options_, *estimate_));
-  inverse_lut_.resize(256);
-  const std::vector<double> table = backend_.response().inverse_table(256);
-  for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
+  inverse_lut_.resize(256);  // filled by follow_estimate() before the first correction
   if (options_.background_thread && options_.run_backend) thread_ = std::thread([this] { backend_loop(); });
 }
 
@@ -127,12 +125,13 @@ void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& mo
   const double t = first || largest <= options_.max_correction_step_log || options_.max_correction_step_log <= 0.0
                        ? 1.0
                        : options_.max_correction_step_log / largest;
-  correction_response_ = ResponseModel(correction_response_.coefficients() +
-                                       t * (model.response.coefficients() - correction_response_.coefficients()));
-  correction_vignette_.v += t * (model.vignette.v - correction_vignette_.v);
   if (t == 1.0) {
     correction_response_ = model.response;
     correction_vignette_ = model.vignette;
+  } else {
+    correction_response_ = ResponseModel(correction_response_.coefficients() +
+                                         t * (model.response.coefficients() - correction_response_.coefficients()));
+    correction_vignette_.v += t * (model.vignette.v - correction_vignette_.v);
   }
   const std::vector<double> table = correction_response_.inverse_table(256);
   for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
@@ -371,8 +370,6 @@ void OnlinePhotometricCalibration::reset() {
   const std::shared_ptr<const PhotometricEstimate> model = estimate();
   exposure_.set_model(model->response, model->vignette, trusted_grey_range(options_, *model));
   exposure_.reset();
-  const std::vector<double> table = model->response.inverse_table(256);
-  for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);
   applied_version_ = model->model_version;
   inverse_vignette_version_ = -1;
   correction_version_ = -1;  // a new start: the next frame is corrected with the estimate as it is

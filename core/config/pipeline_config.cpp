@@ -42,6 +42,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
                                  *mode + "'");
   }
   stages.read<std::size_t>("exposure_history", pipeline.exposure_history, 2, 1'000'000);
+  stages.read<double>("corrected_frame_exponent", pipeline.corrected_frame_exponent, 0.1, 1.0);
   stages.reject_unknown_keys();
 
   YamlMapReader odometry(root["odometry"], file, "odometry");
@@ -69,6 +70,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   YamlMapReader calibration(root["calibration"], file, "calibration");
   calibration.read_flag("background_thread", pipeline.calibration.background_thread);
   calibration.read_flag("use_reported_exposures", pipeline.calibration.use_reported_exposures);
+  calibration.read_flag("estimate_model", pipeline.calibration.run_backend);
   calibration.read<int>("iterations_per_keyframe", pipeline.calibration.iterations_per_keyframe, 1, 100);
   calibration.read<int>("queue_capacity", pipeline.calibration.queue_capacity, 1, 1000);
   if (const auto lens = calibration.read_text("lens_vignette")) {

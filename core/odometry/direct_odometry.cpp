@@ -142,7 +142,7 @@ struct DirectOdometry::Impl {
   }
 
   odometry::LampGeometry lamp() const {
-    return {options.illuminator_correction, options.light_offset, options.beam_exponent};
+    return {options.illuminator_correction, options.light_offset, options.beam_exponent, options.brightness_exponent};
   }
 
   double a_prior(bool first) const {
@@ -671,6 +671,7 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
   double exposure = frame.exposure.value_or(1.0);
   if (options_.illuminator_correction && frame.illuminator_power_w && *frame.illuminator_power_w > 0.0)
     exposure *= *frame.illuminator_power_w;
+  exposure = std::pow(exposure, options_.brightness_exponent);
   if (impl_->phase == Impl::Phase::Initialising && impl_->initializer->state() != InitializerState::Tracking)
     impl_->exposure_known = frame.exposure.has_value();
 

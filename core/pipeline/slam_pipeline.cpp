@@ -80,7 +80,10 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
   // it and the corrected frames no longer show it: only raw frames need the beam term.
   if (options_.light_offset_estimation.beam_exponent < 0.0)
     options_.light_offset_estimation.beam_exponent = options_.odometry.beam_exponent;
-  if (runs_calibration(options_.mode)) options_.odometry.beam_exponent = 0.0;
+  if (runs_calibration(options_.mode)) {
+    options_.odometry.beam_exponent = 0.0;
+    options_.odometry.brightness_exponent = options_.corrected_frame_exponent;
+  }
   if (runs_calibration(options_.mode))
     calibration_ = std::make_unique<OnlinePhotometricCalibration>(options_.calibration);
   if (options_.mode == PipelineMode::Quality) {
@@ -127,6 +130,14 @@ cv::Mat SlamPipeline::odometry_input(const Frame& frame, const cv::Mat& correcte
   cv::Mat out;
   cv::remap(grey, out, undistorter_->map_x(), undistorter_->map_y(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   return out;
+}
+
+cv::Mat SlamPipeline::encode_irradiance(const cv::Mat& irradiance) {
+  // 255 (E / 255)^gamma; E can pass 255 where V < 1, and interpolation can dip below 0.
+  cv::max(irradiance, 0.0, encoded_buffer_);
+  cv::pow(encoded_buffer_, options_.corrected_frame_exponent, encoded_buffer_);
+  encoded_buffer_ *= std::pow(255.0, 1.0 - options_.corrected_frame_exponent);
+  return encoded_buffer_;
 }
 
 PipelineFrameResult SlamPipeline::process(const Frame& frame) {
@@ -181,6 +192,8 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     input.frame_index = frame.index;
     input.timestamp_s = frame.timestamp_s;
     input.image = odometry_input(frame, result.corrected);
+    const cv::Mat irradiance = input.image;
+    if (!result.corrected.empty() && options_.corrected_frame_exponent != 1.0) input.image = encode_irradiance(irradiance);
     // Exposure for the odometry's brightness model: as the camera reports it when it does (exact,
     // as DSO uses TUM monoVO's times.txt), else the calibration's estimate.
     if (calibration_ && options_.calibration.use_reported_exposures && frame.exposure_ms)
@@ -194,7 +207,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     result.timings.mapping_ms = odometry.timings.mapping_ms;
     update_trajectory(frame, odometry);
     remember_odometry(odometry);
-    estimate_light_offset(input, odometry);
+    estimate_light_offset(input, irradiance, odometry);
     result.odometry = std::move(odometry);
   }
   return result;
@@ -210,7 +223,8 @@ bool SlamPipeline::predict_light_distances() {
   return !light_distances_->empty();
 }
 
-void SlamPipeline::estimate_light_offset(const OdometryFrame& input, const OdometryResult& result) {
+void SlamPipeline::estimate_light_offset(const OdometryFrame& input, const cv::Mat& irradiance,
+                                        const OdometryResult& result) {
   if (!light_offset_ || !result.is_keyframe || !result.T_world_cam) return;
   if (result.segment != light_offset_segment_) {
     // A new world frame and scale: what was estimated in the old one's units does not hold.
@@ -219,7 +233,7 @@ void SlamPipeline::estimate_light_offset(const OdometryFrame& input, const Odome
     if (options_.apply_estimated_light_offset) options_.odometry.light_offset.setZero();
   }
   const double exposure = input.exposure.value_or(1.0) * input.illuminator_power_w.value_or(1.0);
-  light_offset_->add_keyframe(result.segment, *result.T_world_cam, input.image, exposure);
+  light_offset_->add_keyframe(result.segment, *result.T_world_cam, irradiance, exposure);
   if (light_offset_->keyframes() < 3) return;  // fewer views fix nothing
   const Eigen::Vector3d start = light_offset_estimate_ && light_offset_estimate_->determined
                                     ? light_offset_estimate_->offset_cam

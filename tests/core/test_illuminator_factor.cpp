@@ -26,11 +26,13 @@ struct Case {
   Eigen::Vector3d offset;
   double beam;
   bool normal;
+  double brightness_exponent = 1.0;  // images encoding irradiance^gamma see g^gamma
 };
 const Case kCases[] = {{Eigen::Vector3d::Zero(), 0.0, false},
                        {Eigen::Vector3d(0.02, 0.05, -0.01), 0.0, false},
                        {Eigen::Vector3d(0.0, 0.05, 0.0), 4.8, false},
-                       {Eigen::Vector3d(0.03, 0.05, 0.01), 4.8, true}};
+                       {Eigen::Vector3d(0.03, 0.05, 0.01), 4.8, true},
+                       {Eigen::Vector3d(0.03, 0.05, 0.01), 4.8, true, 0.5}};
 
 // A normal in the host frame that faces the camera, tilted away from the viewing ray.
 Eigen::Vector3d tilted_normal(const Eigen::Vector3d& ray) {
@@ -48,7 +50,7 @@ TEST(IlluminatorFactor, MatchesDistancesBeamAndIncidenceOfSyntheticPointPairs) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(40.0, 280.0), v(30.0, 210.0), depth(0.8, 4.0);
   for (const Case& c : kCases) {
-    const LampGeometry lamp{true, c.offset, c.beam};
+    const LampGeometry lamp{true, c.offset, c.beam, c.brightness_exponent};
     for (int k = 0; k < 20; ++k) {
       const Eigen::Vector2d pixel(u(rng), v(rng));
       const double z = depth(rng);
@@ -64,6 +66,7 @@ TEST(IlluminatorFactor, MatchesDistancesBeamAndIncidenceOfSyntheticPointPairs) {
         expected *= std::pow(cos_alpha_t / cos_alpha_h, c.beam);
       }
       if (c.normal) expected *= cos_to_light(X_t, c.offset, R * n_h) / cos_to_light(X_h, c.offset, n_h);
+      expected = std::pow(expected, c.brightness_exponent);
       LampFactor f;
       ASSERT_TRUE(lamp_factor(ray, 1.0 / z, R, T_th.translation(), lamp, f, c.normal ? &n_h : nullptr));
       EXPECT_NEAR(f.g, expected, 1e-9 * expected) << "case beam " << c.beam << " normal " << c.normal;
@@ -93,7 +96,7 @@ TEST(IlluminatorFactor, LogDerivativesMatchNumericDifferentiation) {
   const Eigen::Vector3d n_h = tilted_normal(ray);
   const double rho = 0.6;
   for (const Case& c : kCases) {
-    const LampGeometry lamp{true, c.offset, c.beam};
+    const LampGeometry lamp{true, c.offset, c.beam, c.brightness_exponent};
     const Eigen::Vector3d* normal = c.normal ? &n_h : nullptr;
     auto log_g = [&](const SE3& T, double r) {
       return std::log(lamp_factor_value(ray, r, T.rotation_matrix(), T.translation(), lamp, normal));
@@ -128,14 +131,20 @@ TEST(IlluminatorFactor, ResidualJacobiansWithTheLampMatchNumericDifferentiation)
   };
   ResidualJacobian J;
   ASSERT_TRUE(linearize(at, J, lamp));
-  testing::expect_jacobians_match_central_differences(
-      J,
-      [&](const testing::ResidualArguments& x) {
-        ResidualJacobian out;
-        EXPECT_TRUE(linearize(x, out, lamp));
-        return out.residual;
-      },
-      at);
+  for (const double gamma : {1.0, 0.5}) {
+    LampGeometry encoded = lamp;
+    encoded.brightness_exponent = gamma;
+    ResidualJacobian Jg;
+    ASSERT_TRUE(linearize(at, Jg, encoded));
+    testing::expect_jacobians_match_central_differences(
+        Jg,
+        [&](const testing::ResidualArguments& x) {
+          ResidualJacobian out;
+          EXPECT_TRUE(linearize(x, out, encoded));
+          return out.residual;
+        },
+        at);
+  }
   // The lamp's share of the inverse-depth derivative is not negligible here (an approach).
   ResidualJacobian plain;
   ASSERT_TRUE(linearize(at, plain, LampGeometry{}));

@@ -38,19 +38,23 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Calibrated);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 7);
   EXPECT_TRUE(config.worker.pipeline.calibration.background_thread);
+  EXPECT_TRUE(config.worker.pipeline.calibration.run_backend);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 0.5);
 }
 
 TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   const PipelineConfig config = load_pipeline_config(write_yaml(
-      "stages", "pipeline:\n  mode: odometry\nodometry:\n  points_per_frame: 1500\n  window_size: 5\n"
-                "  affine_a_prior_known_exposure: 2.5\n"
-                "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n"));
+      "stages", "pipeline:\n  mode: odometry\n  corrected_frame_exponent: 1.0\nodometry:\n  points_per_frame: 1500\n"
+                "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n"
+                "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.affine_a_prior_known_exposure, 2.5);
   EXPECT_FALSE(config.worker.pipeline.calibration.background_thread);
   EXPECT_EQ(config.worker.pipeline.calibration.iterations_per_keyframe, 2);
+  EXPECT_FALSE(config.worker.pipeline.calibration.run_backend);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 1.0);
 }
 
 TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {

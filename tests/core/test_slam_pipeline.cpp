@@ -69,6 +69,11 @@ TEST(SlamPipeline, ModesChooseCalibrationAndTheLampFactor) {
   options.mode = PipelineMode::Illuminated;
   options.calibration.background_thread = false;
   EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().beam_exponent, 0.0);
+  // Corrected frames reach the odometry encoded with the pipeline's exponent, raw ones as they are.
+  options.corrected_frame_exponent = 0.4;
+  EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().brightness_exponent, 0.4);
+  options.mode = PipelineMode::OdometryIlluminated;
+  EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().brightness_exponent, 1.0);
 }
 
 TEST(SlamPipeline, QualityModeRunsNoStage) {

@@ -70,6 +70,11 @@ struct OdometryOptions {
   double affine_b_prior_known_exposure = 1e6;
   double affine_a_prior_free = 1e5;
   double affine_b_prior_free = 1e2;
+  // The images' grey values are proportional to irradiance^gamma (1: linear, DSO's G(I)/V; the
+  // pipeline hands corrected frames on as their square root, PipelineOptions::
+  // corrected_frame_exponent): a frame's exposure and lamp power enter the brightness ratio, and
+  // the lamp's factor g the residual, raised to gamma.
+  double brightness_exponent = 1.0;
 
   // The co-located illuminator (DESIGN.md, "The illuminator model"): with the correction on, the
   // residual between host h and target t carries g = (d_h / d_t)^2, d the distance from the lamp

@@ -92,10 +92,13 @@ inline Matrix6d adjoint(const SE3& T) {
 // T_target_host the target point moves by d_upsilon + d_omega x X_t, so
 // d u_t = rho d_upsilon - [q]x d_omega and d (R n) = d_omega x R n; d u_h / d rho = -o,
 // d u_t / d rho = t - o.
+// Images whose grey values are irradiance^gamma (OdometryOptions::brightness_exponent) see the
+// factor as g^gamma: log g and its derivatives are scaled by gamma.
 struct LampGeometry {
   bool enabled = false;
   Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // light position in the camera frame, odometry units
   double beam_exponent = 0.0;                        // m of B(alpha) = cos(alpha)^m
+  double brightness_exponent = 1.0;                  // gamma of the images' encoding of irradiance
 };
 struct LampFactor {
   double g = 1.0;
@@ -145,10 +148,11 @@ inline bool lamp_factor(const Eigen::Vector3d& ray, double rho, const Eigen::Mat
   }
   log_g += norm_weight * std::log(n_h / n_t);
   w += (-2.0 * norm_weight / n_t) * u_t;
-  out.g = std::exp(log_g);
-  out.d_log_g_d_pose.head<3>() = rho * w.transpose();
-  out.d_log_g_d_pose.tail<3>() = (q.cross(w) + d_rot_extra).transpose();
-  out.d_log_g_d_rho = norm_weight * (-2.0 * u_h.dot(o) / n_h - 2.0 * u_t.dot(t_minus_o) / n_t) + d_rho_extra;
+  const double gamma = lamp.brightness_exponent;
+  out.g = std::exp(gamma * log_g);
+  out.d_log_g_d_pose.head<3>() = gamma * rho * w.transpose();
+  out.d_log_g_d_pose.tail<3>() = gamma * (q.cross(w) + d_rot_extra).transpose();
+  out.d_log_g_d_rho = gamma * (norm_weight * (-2.0 * u_h.dot(o) / n_h - 2.0 * u_t.dot(t_minus_o) / n_t) + d_rho_extra);
   return true;
 }
 // Value only (the energy passes); 1 where lamp_factor fails.

@@ -142,7 +142,8 @@ struct DirectOdometry::Impl {
   }
 
   odometry::LampGeometry lamp() const {
-    return {options.illuminator_correction, options.light_offset, options.beam_exponent, options.brightness_exponent};
+    return {options.illuminator_correction, options.light_offset, options.beam_exponent, options.brightness_exponent,
+            options.lamp_factor_derivatives};
   }
 
   double a_prior(bool first) const {

@@ -92,6 +92,8 @@ struct OdometryOptions {
   // cos(theta) of the lamp's light on the surface, from normals fitted to neighbouring points'
   // depths (odometry/surface_normals.hpp), where a plane fits.
   bool lamp_surface_normals = true;
+  // g's derivatives in the Jacobians (false: g evaluated at the current estimates only).
+  bool lamp_factor_derivatives = true;
 
   // Initialiser.
   double init_min_parallax_px = 6.0;    // rms translational flow at level 0 for a 640-wide image

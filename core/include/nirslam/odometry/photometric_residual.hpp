@@ -99,6 +99,9 @@ struct LampGeometry {
   Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // light position in the camera frame, odometry units
   double beam_exponent = 0.0;                        // m of B(alpha) = cos(alpha)^m
   double brightness_exponent = 1.0;                  // gamma of the images' encoding of irradiance
+  // false: g from the current estimates, held in each linearisation (no derivatives), so
+  // brightness errors of the photometric model cannot move poses and depths through it.
+  bool derivatives = true;
 };
 struct LampFactor {
   double g = 1.0;
@@ -150,6 +153,11 @@ inline bool lamp_factor(const Eigen::Vector3d& ray, double rho, const Eigen::Mat
   w += (-2.0 * norm_weight / n_t) * u_t;
   const double gamma = lamp.brightness_exponent;
   out.g = std::exp(gamma * log_g);
+  if (!lamp.derivatives) {
+    out.d_log_g_d_pose.setZero();
+    out.d_log_g_d_rho = 0.0;
+    return true;
+  }
   out.d_log_g_d_pose.head<3>() = gamma * rho * w.transpose();
   out.d_log_g_d_pose.tail<3>() = gamma * (q.cross(w) + d_rot_extra).transpose();
   out.d_log_g_d_rho = gamma * (norm_weight * (-2.0 * u_h.dot(o) / n_h - 2.0 * u_t.dot(t_minus_o) / n_t) + d_rho_extra);

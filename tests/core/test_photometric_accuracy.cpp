@@ -86,6 +86,8 @@ SimulatorOptions constant_radiance(sim::SceneKind scene, ResponsePreset response
 SimulatorOptions co_lit(sim::SceneKind scene, ResponsePreset response, int frames) {
   SimulatorOptions o = calibration_sequence(scene, response, frames);
   o.powers_w = {50.0};
+  // Diagnosis: the ambient light (the scene's own by default) does not fall off with the lamp's distance.
+  if (const char* ambient = std::getenv("NIRSLAM_PHOTOMETRIC_COLIT_AMBIENT")) o.ambient_irradiance = std::atof(ambient);
   return o;
 }
 

@@ -3,6 +3,7 @@
 // calibration) and are left out of the slow sanitizer runs.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <optional>
@@ -98,6 +99,34 @@ SimulatorOptions co_lit(sim::SceneKind scene, ResponsePreset response, int frame
 FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& f, bool cosine) {
   FrameIllumination illumination;
   illumination.light_distance_m = [&sim, &f](const Eigen::Vector2d& pixel) { return sim.light_distance(f.depth, pixel); };
+  // Diagnosis: distances scattered like the odometry's (log-normal, sigma from
+  // NIRSLAM_PHOTOMETRIC_DISTANCE_NOISE, one draw per frame and 16 px cell).
+  if (const char* noise = std::getenv("NIRSLAM_PHOTOMETRIC_DISTANCE_NOISE")) {
+    const double sigma = std::atof(noise);
+    illumination.light_distance_m = [&sim, &f, sigma](const Eigen::Vector2d& pixel) -> std::optional<double> {
+      const auto d = sim.light_distance(f.depth, pixel);
+      if (!d) return d;
+      std::uint64_t key = static_cast<std::uint64_t>(f.frame.index) * 1000003u +
+                          static_cast<std::uint64_t>(pixel.x() / 16.0) * 1009u + static_cast<std::uint64_t>(pixel.y() / 16.0);
+      key = (key ^ (key >> 31)) * 0x9E3779B97F4A7C15ull;
+      key ^= key >> 29;
+      // Sum of four uniforms: roughly Gaussian, unit variance.
+      double n = 0.0;
+      for (int i = 0; i < 4; ++i, key = key * 6364136223846793005ull + 1442695040888963407ull)
+        n += static_cast<double>(key >> 11) / 9007199254740992.0 - 0.5;
+      return *d * std::exp(sigma * n * std::sqrt(3.0));
+    };
+  }
+  // Diagnosis: a drifting monocular scale, d exp(-drift * frame / 150) (the odometry's scale in the
+  // room drifted by about 0.5 in log over 110 frames, README).
+  if (const char* drift = std::getenv("NIRSLAM_PHOTOMETRIC_DISTANCE_DRIFT")) {
+    const double factor = std::exp(-std::atof(drift) * static_cast<double>(f.frame.index) / 150.0);
+    illumination.light_distance_m = [inner = illumination.light_distance_m, factor](const Eigen::Vector2d& pixel) -> std::optional<double> {
+      const auto d = inner(pixel);
+      if (!d) return d;
+      return *d * factor;
+    };
+  }
   if (cosine)
     illumination.light_cosine = [&sim, &f](const Eigen::Vector2d& pixel) -> std::optional<double> {
       const auto ray = sim.camera()->unproject(pixel);

@@ -84,6 +84,53 @@ bool monotonic_on_grid(const Eigen::Vector4d& c) {
 
 }  // namespace
 
+Eigen::Vector3d vignette_from_monotone(const Eigen::Vector3d& q, Eigen::Matrix3d* dv_dq) {
+  const double a = q[0], b = q[1], c = q[2];
+  if (dv_dq != nullptr) {
+    *dv_dq << -2.0 * a, 0.0, 0.0,
+              -b, -a, -c,
+              0.0, -2.0 * b / 3.0, 2.0 * c / 3.0;
+  }
+  return {-a * a, -(2.0 * a * b + c * c) / 2.0, (c * c - b * b) / 3.0};
+}
+
+Eigen::Vector3d monotone_from_vignette(const Eigen::Vector3d& v, double floor) {
+  const auto floored = [floor](Eigen::Vector3d q) {
+    if (std::abs(q[0]) < floor) q[0] = q[0] < 0.0 ? -floor : floor;
+    if (std::abs(q[2]) < floor) q[2] = q[2] < 0.0 ? -floor : floor;
+    return q;
+  };
+  // Exact: a = sqrt(-v1), then b from b^2 + 2ab + 2 v2 + 3 v3 = 0 (eliminating c^2 between the
+  // v2 and v3 equations), c^2 = -2 v2 - 2ab; the root with the larger c^2 wins.
+  const double a = std::sqrt(std::max(-v[0], 0.0));
+  const double discriminant = a * a - 2.0 * v[1] - 3.0 * v[2];
+  std::optional<Eigen::Vector3d> best;
+  double best_c2 = -1e-12;
+  if (v[0] <= 0.0 && discriminant >= 0.0) {
+    for (const double sign : {-1.0, 1.0}) {
+      const double b = -a + sign * std::sqrt(discriminant);
+      const double c2 = -2.0 * v[1] - 2.0 * a * b;
+      if (c2 >= best_c2) {
+        best_c2 = c2;
+        best = Eigen::Vector3d(a, b, std::sqrt(std::max(c2, 0.0)));
+      }
+    }
+  }
+  if (best) return floored(*best);
+  // Not a non-increasing V: the nearest v(q) in least squares, by Gauss-Newton.
+  Eigen::Vector3d q(std::max(a, 0.3), 0.0, 0.3);
+  for (int iteration = 0; iteration < 50; ++iteration) {
+    Eigen::Matrix3d J;
+    const Eigen::Vector3d r = vignette_from_monotone(q, &J) - v;
+    const Eigen::Matrix3d A = J.transpose() * J + 1e-6 * Eigen::Matrix3d::Identity();
+    const Eigen::Vector3d dq = A.ldlt().solve(-J.transpose() * r);
+    if (!dq.allFinite()) break;
+    q += dq;
+    if (dq.norm() < 1e-10) break;
+  }
+  return floored(q);
+}
+
 InverseResponse::InverseResponse(const Eigen::Vector4d& c) : c_(c), table_(kInverseTableSize) {
   // Walk a fine grid of u once; f is increasing, so each y's bracket follows the previous one.
   constexpr int kGrid = 4 * (kInverseTableSize - 1);
@@ -215,6 +262,7 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
   // caller had distances) cannot be compared with them: their observations are left out.
   bool modelled = false;
   for (const int k : window) modelled |= keyframes_[static_cast<std::size_t>(k)].illumination_modelled;
+  lit_problem_ = modelled;
   const double mu = modelled ? options_.lit_gradient_mu : options_.gradient_mu;
   for (const auto* list : usable) {
     if (static_cast<int>(points_.size()) + kBackendPixels > options_.max_points) break;
@@ -502,6 +550,13 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   if (step.vignette_estimated && options_.vignette_monotonic && !VignetteModel{state.v}.is_plausible())
     state.v = VignetteModel{options_.initial_vignette.v}.is_plausible() ? options_.initial_vignette.v
                                                                                      : Eigen::Vector3d::Zero();
+  // Monotone steps (VignetteSteps): the LM works in q, v = vignette_from_monotone(q).
+  const bool monotone_steps = step.vignette_estimated && options_.vignette_monotonic &&
+                              (lit_problem_ ? options_.lit_vignette_steps : options_.vignette_steps) == VignetteSteps::Monotone;
+  if (monotone_steps) {
+    state.q = monotone_from_vignette(state.v);
+    state.v = vignette_from_monotone(state.q);
+  }
   state.exposure = exposure;
   update_u(state);
   initialise_radiances(state);
@@ -624,6 +679,10 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     for (int iteration = 0; iteration < iterations; ++iteration) {
       H.setZero();
       b.setZero();
+      // With monotone steps the vignette unknowns are q: dr/dq = (dv/dq)^T dr/dv.
+      Eigen::Matrix3d dv_dq = Eigen::Matrix3d::Identity();
+      if (monotone_steps) vignette_from_monotone(st.q, &dv_dq);
+      const Eigen::Matrix3d dv_dq_t = dv_dq.transpose();
       for (std::size_t pi = 0; pi < points_.size(); ++pi) {
         const Point& p = points_[pi];
         const double L = st.radiance[pi];
@@ -661,6 +720,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
             jg[4] = dV * r2;
             jg[5] = dV * r2 * r2;
             jg[6] = dV * r2 * r2 * r2;
+            if (monotone_steps) jg.tail<3>() = dv_dq_t * jg.tail<3>().eval();
           } else {
             jg.tail<3>().setZero();
           }
@@ -744,17 +804,23 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
         // the boundary (flat at the rim), where rejecting whole steps would freeze c and e too.
         bool valid = false;
         dx_try = dx;
+        // With monotone steps the step is in q and only V(1) > 0.05 can fail (bisected the same way).
+        const auto stepped_v = [&](double t) -> Eigen::Vector3d {
+          return monotone_steps ? vignette_from_monotone(st.q + t * dx_try.segment<3>(4))
+                                : Eigen::Vector3d(st.v + t * dx_try.segment<3>(4));
+        };
         for (int half = 0; half < 5 && !valid; ++half, dx_try *= 0.5) {
           trial.c = st.c + dx_try.head<4>();
-          if (step.vignette_estimated && !vignette_acceptable(st.v + dx_try.segment<3>(4))) {
+          if (step.vignette_estimated && !vignette_acceptable(stepped_v(1.0))) {
             double lo = 0.0, hi = 1.0;
             for (int bisection = 0; bisection < 12; ++bisection) {
               const double mid = 0.5 * (lo + hi);
-              (vignette_acceptable(st.v + mid * dx_try.segment<3>(4)) ? lo : hi) = mid;
+              (vignette_acceptable(stepped_v(mid)) ? lo : hi) = mid;
             }
             dx_try.segment<3>(4) *= lo;
           }
-          trial.v = st.v + dx_try.segment<3>(4);
+          trial.q = st.q + (monotone_steps ? Eigen::Vector3d(dx_try.segment<3>(4)) : Eigen::Vector3d::Zero());
+          trial.v = stepped_v(1.0);
           trial.exposure.resize(st.exposure.size());
           valid = true;
           for (int w = 0; w < K; ++w) {
@@ -831,6 +897,10 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
       State candidate;
       candidate.c = starts[si];
       candidate.v = initial_v ? options_.initial_vignette.v : state.v;
+      if (monotone_steps) {
+        candidate.q = monotone_from_vignette(candidate.v);
+        candidate.v = vignette_from_monotone(candidate.q);
+      }
       candidate.exposure = state.exposure;
       update_u(candidate);
       initialise_radiances(candidate);

@@ -3,6 +3,7 @@
 // calibration) and are left out of the slow sanitizer runs.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <optional>
@@ -14,6 +15,7 @@
 #include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/photometric/illumination_factor.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
+#include "nirslam/sim/scene.hpp"
 #include "nirslam/sim/simulator.hpp"
 
 namespace nirslam {
@@ -70,6 +72,7 @@ SimulatorOptions calibration_sequence(sim::SceneKind scene, ResponsePreset respo
   if (const char* texture = std::getenv("NIRSLAM_PHOTOMETRIC_TEXTURE"); texture && std::string(texture) == "pixel")
     o.texture_filtering = TextureFiltering::PixelFootprint;
   if (const char* footprint = std::getenv("NIRSLAM_PHOTOMETRIC_FOOTPRINT")) o.texture_footprint_m = std::atof(footprint);
+  if (const char* samples = std::getenv("NIRSLAM_PHOTOMETRIC_SUPERSAMPLING")) o.supersampling = std::atoi(samples);
   return o;
 }
 
@@ -84,20 +87,70 @@ SimulatorOptions constant_radiance(sim::SceneKind scene, ResponsePreset response
 SimulatorOptions co_lit(sim::SceneKind scene, ResponsePreset response, int frames) {
   SimulatorOptions o = calibration_sequence(scene, response, frames);
   o.powers_w = {50.0};
+  // Diagnosis: the ambient light (the scene's own by default) does not fall off with the lamp's distance.
+  if (const char* ambient = std::getenv("NIRSLAM_PHOTOMETRIC_COLIT_AMBIENT")) o.ambient_irradiance = std::atof(ambient);
   return o;
 }
 
 // Ground-truth light distances of the frame last rendered with depth (the simulator knows them;
 // the pipeline hands the odometry's depths the same way).
-FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& f) {
+// With `cosine` also the light's true incidence cos(theta) from the scene's surface normal at the
+// pixel (a ray cast per tracked pixel), which the factor then carries (illumination_factor.hpp).
+FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& f, bool cosine) {
   FrameIllumination illumination;
   illumination.light_distance_m = [&sim, &f](const Eigen::Vector2d& pixel) { return sim.light_distance(f.depth, pixel); };
+  // Diagnosis: distances scattered like the odometry's (log-normal, sigma from
+  // NIRSLAM_PHOTOMETRIC_DISTANCE_NOISE, one draw per frame and 16 px cell).
+  if (const char* noise = std::getenv("NIRSLAM_PHOTOMETRIC_DISTANCE_NOISE")) {
+    const double sigma = std::atof(noise);
+    illumination.light_distance_m = [&sim, &f, sigma](const Eigen::Vector2d& pixel) -> std::optional<double> {
+      const auto d = sim.light_distance(f.depth, pixel);
+      if (!d) return d;
+      std::uint64_t key = static_cast<std::uint64_t>(f.frame.index) * 1000003u +
+                          static_cast<std::uint64_t>(pixel.x() / 16.0) * 1009u + static_cast<std::uint64_t>(pixel.y() / 16.0);
+      key = (key ^ (key >> 31)) * 0x9E3779B97F4A7C15ull;
+      key ^= key >> 29;
+      // Sum of four uniforms: roughly Gaussian, unit variance.
+      double n = 0.0;
+      for (int i = 0; i < 4; ++i, key = key * 6364136223846793005ull + 1442695040888963407ull)
+        n += static_cast<double>(key >> 11) / 9007199254740992.0 - 0.5;
+      return *d * std::exp(sigma * n * std::sqrt(3.0));
+    };
+  }
+  // Diagnosis: a drifting monocular scale, d exp(-drift * frame / 150) (the odometry's scale in the
+  // room drifted by about 0.5 in log over 110 frames, README).
+  if (const char* drift = std::getenv("NIRSLAM_PHOTOMETRIC_DISTANCE_DRIFT")) {
+    const double factor = std::exp(-std::atof(drift) * static_cast<double>(f.frame.index) / 150.0);
+    illumination.light_distance_m = [inner = illumination.light_distance_m, factor](const Eigen::Vector2d& pixel) -> std::optional<double> {
+      const auto d = inner(pixel);
+      if (!d) return d;
+      return *d * factor;
+    };
+  }
+  if (cosine)
+    illumination.light_cosine = [&sim, &f](const Eigen::Vector2d& pixel) -> std::optional<double> {
+      const auto ray = sim.camera()->unproject(pixel);
+      if (!ray) return std::nullopt;
+      const Eigen::Vector3d origin = f.T_world_cam.translation();
+      const Eigen::Vector3d direction = f.T_world_cam * ray->normalized() - origin;
+      const auto hit = sim::cast_ray(sim.scene(), origin, direction);
+      if (!hit) return std::nullopt;
+      const Eigen::Vector3d light = f.T_world_cam * sim.options().light_offset_cam;
+      const Eigen::Vector3d to_light = (light - hit->point).normalized();
+      const double cos_theta = hit->normal.dot(to_light);
+      if (!(cos_theta > 0.02)) return std::nullopt;
+      return cos_theta;
+    };
   return illumination;
 }
 
 // Calibrates online over the sequence, finish(), then estimates every frame's exposure again with
 // the final model (front end only), as `nirslam calibrate` does.
-AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures, bool light_factor = false) {
+// With light_factor the calibration gets the lamp's true distances, with light_cosine (or
+// NIRSLAM_PHOTOMETRIC_TRUE_COSINE set) also the true cos(theta).
+AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures, bool light_factor = false,
+                bool light_cosine = false) {
+  light_cosine |= std::getenv("NIRSLAM_PHOTOMETRIC_TRUE_COSINE") != nullptr;
   OnlineCalibrationOptions options;
   options.background_thread = false;  // deterministic
   options.use_reported_exposures = use_reported_exposures;
@@ -105,8 +158,14 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* probe = std::getenv("NIRSLAM_PHOTOMETRIC_PROBE")) options.backend.multi_start_probe_iterations = std::atoi(probe);
   if (const char* gauge = std::getenv("NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT")) options.backend.gamma_gauge_weight = std::atof(gauge);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_FREE_VIGNETTE") != nullptr) options.backend.vignette_monotonic = false;
+  // How V stays plausible (photometric_backend.hpp, VignetteSteps), with and without the lamp's factor.
+  if (const char* steps = std::getenv("NIRSLAM_PHOTOMETRIC_VIGNETTE_STEPS")) {
+    const VignetteSteps chosen = std::string(steps) == "monotone" ? VignetteSteps::Monotone : VignetteSteps::Bisected;
+    options.backend.vignette_steps = options.backend.lit_vignette_steps = chosen;
+  }
   if (const char* ncc = std::getenv("NIRSLAM_PHOTOMETRIC_MIN_NCC")) options.tracker.min_reference_ncc = std::atof(ncc);
   if (const char* mu = std::getenv("NIRSLAM_PHOTOMETRIC_MU")) options.backend.gradient_mu = std::atof(mu);
+  if (const char* mu = std::getenv("NIRSLAM_PHOTOMETRIC_LIT_MU")) options.backend.lit_gradient_mu = std::atof(mu);
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_CURVATURE")) options.backend.log_curvature_weight = std::atof(w);
   // Fall-off of the exposure estimator's trust outside the fitted grey range (exposure_estimator.hpp);
   // 1e9 trusts every grey level (as before the weighting).
@@ -133,7 +192,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
       e_max = std::max(e_max, e);
       out.mean_grey += f->mean_grey;
       if (!use_reported_exposures) frame.exposure_ms.reset();
-      front_end += (light_factor ? calibration.process(frame, true_illumination(sim, *f)) : calibration.process(frame)).front_end_ms;
+      front_end += (light_factor ? calibration.process(frame, true_illumination(sim, *f, light_cosine)) : calibration.process(frame)).front_end_ms;
       ++frames;
     }
     calibration.finish();
@@ -158,7 +217,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
     Frame frame = f->frame;
     if (!use_reported_exposures) frame.exposure_ms.reset();
     if (light_factor)
-      exposures.process(frame, true_illumination(sim, *f));
+      exposures.process(frame, true_illumination(sim, *f, light_cosine));
     else
       exposures.process(frame);
   }
@@ -287,20 +346,50 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
 }
 
 // Issue 8, calibration side: under the co-located lamp the (d_ref/d)^2 (P/P_ref) factor from the
-// true distances. Measured on room/log (known exposures, CoLitTable's printout): exposure median
-// 47.9 % -> 16.7 %, halo factor 0.188 -> 0.105 against V B (the plain run without the factor uses
-// gradient_mu 0.25, the run with it lit_gradient_mu 25; with 25 for both the plain run had 73.4 %
-// and 0.141; with the back end's old Jacobian 0.305 -> 0.125); the response (12-55 grey levels)
-// and the halo factor stay far from the issue's targets: see the co-lit table in the README.
+// true distances. Measured on room/log (known exposures, this test's printout): without the factor
+// response 54.6 grey levels, halo factor 0.188 against V B, exposure median 47.9 %; with it 5.75
+// (2.32 in the observed range 9-167), 0.0170 and 3.03 %, residual 1.96 against 4.80 grey levels.
+// Before the back end's monotone vignette steps (VignetteSteps::Bisected under the lamp too) the
+// factor gave 12.1, 0.105 and 16.7 %: the steep halo stalled on the plausibility boundary.
 TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   const AccuracyRun plain = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, false);
   const AccuracyRun lit = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, true);
   print("room co-lit", plain);
   print("room co-lit+d^2", lit);
-  EXPECT_LT(lit.errors.exposure_median_relative, 0.2);
-  EXPECT_LT(lit.errors.exposure_median_relative, 0.45 * plain.errors.exposure_median_relative);
-  EXPECT_LT(lit.errors.vignette_mean, 0.85 * plain.errors.vignette_mean);
-  EXPECT_LT(lit.estimate->residual_rms, 0.75 * plain.estimate->residual_rms);
+  EXPECT_LT(lit.errors.exposure_median_relative, 0.04);
+  EXPECT_LT(lit.errors.vignette_mean, 0.025);
+  EXPECT_LT(lit.in_range_mean_grey, 3.2);
+  EXPECT_LT(lit.errors.response_mean_grey, 7.5);
+  EXPECT_LT(lit.errors.exposure_median_relative, 0.1 * plain.errors.exposure_median_relative);
+  EXPECT_LT(lit.errors.vignette_mean, 0.15 * plain.errors.vignette_mean);
+  EXPECT_LT(lit.estimate->residual_rms, 0.5 * plain.estimate->residual_rms);
+}
+
+// The same with the light's true incidence cos(theta) in the factor as well (surface normals from
+// the scene; the pipeline's plane fits can hand it on, PipelineOptions::lamp_cosine_to_calibration).
+// Then the room meets issue 6's halo and exposure targets. Measured (this test's printout): halo
+// factor 0.0037 (< 0.005), exposure median 1.62 % (< 2 %); the response is 0.76 grey levels off
+// modulo the irradiance scale in the observed range but 12.0 over all levels (s = 1.43: the frames
+// never reach saturation, so the scale is the documented normalisation, not data; README).
+TEST(PhotometricAccuracy, RoomCoLitDistanceAndCosine) {
+  const AccuracyRun lit = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, true, true);
+  print("room co-lit+d^2+cos", lit);
+  EXPECT_LT(lit.errors.vignette_mean, 0.005);
+  EXPECT_LT(lit.errors.exposure_median_relative, 0.02);
+  EXPECT_LT(lit.scale_free_mean_grey, 1.2);
+}
+
+// NIRSLAM_PHOTOMETRIC_ROWS=outdoor,tunnel: only the table rows whose label contains one of them.
+bool wanted_row(const std::string& label) {
+  const char* rows = std::getenv("NIRSLAM_PHOTOMETRIC_ROWS");
+  if (rows == nullptr) return true;
+  const std::string list = rows;
+  for (std::size_t a = 0; a <= list.size();) {
+    const std::size_t b = std::min(list.find(',', a), list.size());
+    if (b > a && label.find(list.substr(a, b - a)) != std::string::npos) return true;
+    a = b + 1;
+  }
+  return false;
 }
 
 // The co-lit table: 4 scenes, the log response, without and with the light's distance factor
@@ -310,15 +399,16 @@ TEST(PhotometricAccuracy, CoLitTable) {
     GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_TABLE=colit";
   for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
     for (const bool factor : {false, true}) {
-      const AccuracyRun r = run(co_lit(scene, ResponsePreset::Log, 150), true, factor);
       const std::string label = std::string(sim::to_string(scene)) + (factor ? " +d^2" : " plain");
+      if (!wanted_row(label)) continue;
+      const AccuracyRun r = run(co_lit(scene, ResponsePreset::Log, 150), true, factor);
       print(label.c_str(), r);
     }
 }
 
 // The full table: 4 scenes x 4 response presets (NIRSLAM_PHOTOMETRIC_TABLE=1 to run it).
 TEST(PhotometricAccuracy, Table) {
-  // NIRSLAM_PHOTOMETRIC_ROWS=outdoor,tunnel: only the rows whose label contains one of them.
+  // NIRSLAM_PHOTOMETRIC_ROWS=outdoor,tunnel: only these rows (wanted_row).
   if (std::getenv("NIRSLAM_PHOTOMETRIC_TABLE") == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_TABLE=1";
   const std::string which = std::getenv("NIRSLAM_PHOTOMETRIC_TABLE");
   if (which == "colit") GTEST_SKIP() << "the co-lit table is CoLitTable";
@@ -326,16 +416,7 @@ TEST(PhotometricAccuracy, Table) {
   for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
     for (const ResponsePreset preset : {ResponsePreset::Linear, ResponsePreset::Gamma, ResponsePreset::Log, ResponsePreset::Filmic}) {
       const std::string label = std::string(sim::to_string(scene)) + " " + std::string(to_string(preset));
-      if (const char* rows = std::getenv("NIRSLAM_PHOTOMETRIC_ROWS")) {
-        bool wanted = false;
-        std::string list = rows;
-        for (std::size_t a = 0; a <= list.size();) {
-          const std::size_t b = std::min(list.find(',', a), list.size());
-          wanted |= b > a && label.find(list.substr(a, b - a)) != std::string::npos;
-          a = b + 1;
-        }
-        if (!wanted) continue;
-      }
+      if (!wanted_row(label)) continue;
       const AccuracyRun r = run(constant_radiance(scene, preset, 150), known);
       print(label.c_str(), r);
     }

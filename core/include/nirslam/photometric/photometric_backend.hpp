@@ -122,6 +122,33 @@ double lit_photometric_residual(const InverseResponse& inverse, const Eigen::Vec
                                 double radiance, double grey, double radius, double illumination,
                                 PhotometricJacobian* jacobian = nullptr, double* d_residual_d_log_illumination = nullptr);
 
+// A plausible vignette by construction (the back end's "monotone" steps, see
+// PhotometricBackendOptions::lit_vignette_steps). With t = r^2, V = 1 + v1 t + v2 t^2 + v3 t^3
+// falls (weakly) on [0, 1] exactly when -dV/dt = -(v1 + 2 v2 t + 3 v3 t^2) >= 0 there, and a
+// quadratic is non-negative on [0, 1] exactly when it is (a + b t)^2 + c^2 t (1 - t) for some
+// q = (a, b, c) (Lukacs' theorem), so
+//
+//   v1 = -a^2,   v2 = -(2 a b + c^2) / 2,   v3 = (c^2 - b^2) / 3
+//
+// covers every non-increasing V of the model and nothing else. With dv_dq, dv/dq (3 x 3).
+Eigen::Vector3d vignette_from_monotone(const Eigen::Vector3d& q, Eigen::Matrix3d* dv_dq = nullptr);
+// A q giving v (the exact inverse for a non-increasing V: a = sqrt(-v1), b a root of
+// b^2 + 2 a b + 2 v2 + 3 v3 = 0 with c^2 = -2 v2 - 2 a b >= 0; else the nearest q in least
+// squares). |a| and |c| are kept at least `floor`: q = 0 is a stationary point of v(q) (every
+// derivative in a and c vanishes there), from which a Gauss-Newton step cannot leave.
+Eigen::Vector3d monotone_from_vignette(const Eigen::Vector3d& v, double floor = 0.05);
+
+// How the LM keeps V plausible when options.vignette_monotonic is set.
+enum class VignetteSteps {
+  // Steps in v; a step that leaves the plausible set is shortened along its own direction to the
+  // boundary (bisection). V then stops where it first touches "flat at some radius" and cannot
+  // slide along that boundary: a steep halo factor stalls there.
+  Bisected,
+  // Steps in q of vignette_from_monotone (plausible by construction, only V(1) > 0.05 is
+  // bisected), so V moves freely inside the plausible set and along its boundary.
+  Monotone,
+};
+
 struct PhotometricBackendOptions {
   ResponseModel initial_response = ResponseModel::from_preset(ResponsePreset::Gamma);
   VignetteModel initial_vignette;
@@ -163,6 +190,12 @@ struct PhotometricBackendOptions {
   double min_exposure_ratio = 1.15;   // max/min exposure in the window below which f is not estimated
   double min_radius_span = 0.1;       // V is estimated when min_points / 2 points span this range of radii
   bool vignette_monotonic = true;     // every accepted V falls (weakly) from the centre to the rim
+  // How it stays so (see VignetteSteps), without and with the co-located light's factor in the
+  // window's observations. Under the lamp the halo factor V B is steep (the simulator's 30-degree
+  // beam times the lens falls to 0.15 at the corner) and bisected steps stall at the boundary
+  // (README "Photometric calibration accuracy", co-lit table).
+  VignetteSteps vignette_steps = VignetteSteps::Bisected;
+  VignetteSteps lit_vignette_steps = VignetteSteps::Monotone;
   double convergence_relative = 1e-6; // stop when the cost drops by less than this fraction
   double monotonic_margin = 0.01;     // f'(u) below this (at 256 points) is penalised ...
   double monotonic_penalty_weight = 100.0;  // ... with this weight per observation
@@ -224,6 +257,7 @@ private:
   struct State {
     Eigen::Vector4d c = Eigen::Vector4d::Zero();
     Eigen::Vector3d v = Eigen::Vector3d::Zero();
+    Eigen::Vector3d q = Eigen::Vector3d::Zero();  // v = vignette_from_monotone(q) with monotone steps
     std::vector<double> exposure;  // window keyframes, divided by the median
     std::vector<double> radiance;  // per point
     std::vector<double> u;         // per observation, for c
@@ -247,6 +281,7 @@ private:
   std::vector<int> window_;
   std::vector<Point> points_;
   std::vector<Observation> observations_;
+  bool lit_problem_ = false;  // the window's observations carry the light's factor (build_problem)
   int updates_since_multi_start_ = 0;
   bool response_fitted_ = false;  // f was estimated at least once
 };

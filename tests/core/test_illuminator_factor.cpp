@@ -117,6 +117,20 @@ TEST(IlluminatorFactor, LogDerivativesMatchNumericDifferentiation) {
   }
 }
 
+TEST(IlluminatorFactor, WithoutDerivativesTheValueStaysAndTheDerivativesAreZero) {
+  const SE3 T_th = kTarget * kHost.inverse();
+  const Eigen::Vector3d ray = kCamera.unproject({120.0, 150.0});
+  LampGeometry lamp{true, Eigen::Vector3d(0.03, 0.05, 0.01), 4.8, 0.5};
+  LampFactor with, without;
+  ASSERT_TRUE(lamp_factor(ray, 0.6, T_th.rotation_matrix(), T_th.translation(), lamp, with));
+  lamp.derivatives = false;
+  ASSERT_TRUE(lamp_factor(ray, 0.6, T_th.rotation_matrix(), T_th.translation(), lamp, without));
+  EXPECT_DOUBLE_EQ(without.g, with.g);
+  EXPECT_GT(with.d_log_g_d_pose.norm(), 0.01);
+  EXPECT_EQ(without.d_log_g_d_pose.norm(), 0.0);
+  EXPECT_EQ(without.d_log_g_d_rho, 0.0);
+}
+
 TEST(IlluminatorFactor, ResidualJacobiansWithTheLampMatchNumericDifferentiation) {
   const ImagePyramid target(testing::smooth_image(320, 240), 1);
   const Eigen::Vector2d pixel(140.0, 100.0);

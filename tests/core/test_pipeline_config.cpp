@@ -40,6 +40,7 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_TRUE(config.worker.pipeline.calibration.background_thread);
   EXPECT_TRUE(config.worker.pipeline.calibration.run_backend);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 0.5);
+  EXPECT_TRUE(config.worker.pipeline.odometry.lamp_factor_derivatives);
 }
 
 TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
@@ -64,7 +65,9 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   EXPECT_TRUE(shipped.worker.pipeline.estimate_light_offset);
   EXPECT_FALSE(shipped.worker.pipeline.apply_estimated_light_offset);
   const PipelineConfig config = load_pipeline_config(write_yaml(
-      "lamp", "odometry:\n  light_offset: [0.0, 0.02, 0.0]\n  apply_estimated_light_offset: true\n"));
+      "lamp", "odometry:\n  light_offset: [0.0, 0.02, 0.0]\n  apply_estimated_light_offset: true\n"
+              "  lamp_factor_derivatives: false\n"));
+  EXPECT_FALSE(config.worker.pipeline.odometry.lamp_factor_derivatives);
   EXPECT_TRUE(config.worker.pipeline.light_offset_configured);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.light_offset.y(), 0.02);
   EXPECT_TRUE(config.worker.pipeline.apply_estimated_light_offset);

@@ -8,7 +8,7 @@
 
 #include "nirslam/odometry/coarse_initializer.hpp"
 #include "nirslam/odometry/coarse_tracker.hpp"
-#include "nirslam/odometry/helper_thread.hpp"
+#include "nirslam/common/helper_thread.hpp"
 #include "nirslam/odometry/image_pyramid.hpp"
 #include "nirslam/odometry/immature_point.hpp"
 #include "nirslam/odometry/pixel_selector.hpp"
@@ -259,17 +259,22 @@ struct DirectOdometry::Impl {
                        affine_transfer(f.state.affine_a, f.state.affine_b, f.exposure, a, b, exposure)});
       total += it->second.size();
     }
-    split_in_two(helper, total, total / 2, 256, [&](std::size_t begin, std::size_t end, int) {
+    // Blocks of 64 points alternate between the threads: the cost per point differs by host
+    // (older hosts' points are mostly bounded or out of view), so halves would not balance.
+    constexpr std::size_t kBlock = 64;
+    auto trace_part = [&](std::size_t part) {
       std::size_t offset = 0;  // index of the host's first point in the concatenation
       for (const HostTrace& host : hosts) {
-        const std::size_t size = host.list->size();
-        const std::size_t from = std::max(begin, offset);
-        const std::size_t to_index = std::min(end, offset + size);
-        for (std::size_t i = from; i < to_index; ++i)
-          (*host.list)[i - offset].trace(cameras[0], pyramid.level(0), host.T_target_host, host.affine, to);
-        offset += size;
+        for (std::size_t i = 0; i < host.list->size(); ++i)
+          if (((offset + i) / kBlock) % 2 == part)
+            (*host.list)[i].trace(cameras[0], pyramid.level(0), host.T_target_host, host.affine, to);
+        offset += host.list->size();
       }
-    });
+    };
+    if (total < 4 * kBlock)
+      for (std::size_t part = 0; part < 2; ++part) trace_part(part);
+    else
+      helper.run([&] { trace_part(0); }, [&] { trace_part(1); });
     for (const HostTrace& host : hosts)
       host.list->erase(std::remove_if(host.list->begin(), host.list->end(),
                                       [](const ImmaturePoint& ip) { return ip.outliers() >= 2; }),

@@ -7,9 +7,9 @@
 
 #include <gtest/gtest.h>
 
-#include "nirslam/odometry/helper_thread.hpp"
+#include "nirslam/common/helper_thread.hpp"
 
-namespace nirslam::odometry {
+namespace nirslam {
 namespace {
 
 TEST(HelperThread, RunsBothPartsOnTwoThreadsEveryTime) {
@@ -63,4 +63,4 @@ TEST(HelperThread, SplitInTwoCoversTheRangeOnceAndKeepsSmallCountsOnTheCaller) {
 }
 
 }  // namespace
-}  // namespace nirslam::odometry
+}  // namespace nirslam

@@ -18,7 +18,7 @@
 #include <Eigen/Core>
 
 #include "nirslam/geometry/se3.hpp"
-#include "nirslam/odometry/helper_thread.hpp"
+#include "nirslam/common/helper_thread.hpp"
 #include "nirslam/odometry/image_pyramid.hpp"
 #include "nirslam/odometry/photometric_residual.hpp"
 

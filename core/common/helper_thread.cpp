@@ -1,6 +1,6 @@
-#include "nirslam/odometry/helper_thread.hpp"
+#include "nirslam/common/helper_thread.hpp"
 
-namespace nirslam::odometry {
+namespace nirslam {
 
 HelperThread::~HelperThread() {
   {
@@ -58,4 +58,4 @@ void HelperThread::run(const std::function<void()>& on_caller, const std::functi
   if (helper_error) std::rethrow_exception(helper_error);
 }
 
-}  // namespace nirslam::odometry
+}  // namespace nirslam

@@ -1,11 +1,11 @@
 #pragma once
 
-// One persistent second thread for the odometry's two-way splits (the machine this targets has
-// two cores): run(on_caller, on_helper) runs on_helper on the helper thread and on_caller on the
-// calling thread, and returns when both are done. The thread is started on the first run, not
-// per call: the window splits its residual passes about ten times per keyframe and the tracker
-// splits its epipolar searches every frame, and starting a thread each time cost tens of
-// microseconds plus a cold stack.
+// One persistent second thread for two-way splits (the machine this targets has two cores):
+// run(on_caller, on_helper) runs on_helper on the helper thread and on_caller on the calling
+// thread, and returns when both are done. The thread is started on the first run, not per call:
+// the odometry's window splits its residual passes about ten times per keyframe, its epipolar
+// searches and the photometric tracker's patches are split every frame, and starting a thread
+// each time cost tens of microseconds plus a cold stack.
 
 #include <condition_variable>
 #include <exception>
@@ -13,7 +13,7 @@
 #include <mutex>
 #include <thread>
 
-namespace nirslam::odometry {
+namespace nirslam {
 
 class HelperThread {
 public:
@@ -51,4 +51,4 @@ void split_in_two(HelperThread& helper, std::size_t count, std::size_t split, st
   helper.run([&] { body(std::size_t{0}, split, 0); }, [&] { body(split, count, 1); });
 }
 
-}  // namespace nirslam::odometry
+}  // namespace nirslam

@@ -69,40 +69,76 @@ int CoarseTracker::accumulate(int level, const ImagePyramid& frame, double expos
   projected = 0;
   int inliers = 0;
   Matrix8d H_local = Matrix8d::Zero();
-  for (const LevelPoint& p : levels_[static_cast<std::size_t>(level)]) {
-    Warp w;
-    if (!warp_pixel(cam, R, t, Eigen::Vector2d(p.u, p.v), p.inverse_depth, w)) continue;
-    if (!cam.inside(w.pixel.x(), w.pixel.y(), 2.0)) continue;
-    ++projected;
-    const Eigen::Vector3f sample = image.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
-    LampFactor lamp;
-    if (options_.lamp.enabled) {
-      const Eigen::Vector3d normal = p.normal.cast<double>();
-      if (!lamp_factor(cam.unproject(Eigen::Vector2d(p.u, p.v)), p.inverse_depth, R, t, options_.lamp, lamp,
-                       p.normal.isZero() ? nullptr : &normal))
+  const std::vector<LevelPoint>& points = levels_[static_cast<std::size_t>(level)];
+  terms_.resize(points.size());
+  // Each point's residual and Jacobian alone (two threads on the fine levels)...
+  auto point_terms = [&](std::size_t begin, std::size_t end, int) {
+    for (std::size_t i = begin; i < end; ++i) {
+      const LevelPoint& p = points[i];
+      PointTerm& term = terms_[i];
+      term.kind = 0;
+      Warp w;
+      if (!warp_pixel(cam, R, t, Eigen::Vector2d(p.u, p.v), p.inverse_depth, w)) continue;
+      if (!cam.inside(w.pixel.x(), w.pixel.y(), 2.0)) continue;
+      term.kind = 1;
+      const Eigen::Vector3f sample = image.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
+      LampFactor lamp;
+      if (options_.lamp.enabled) {
+        const Eigen::Vector3d normal = p.normal.cast<double>();
+        if (!lamp_factor(cam.unproject(Eigen::Vector2d(p.u, p.v)), p.inverse_depth, R, t, options_.lamp, lamp,
+                         p.normal.isZero() ? nullptr : &normal))
+          continue;
+      }
+      const double host_term = s * lamp.g * (p.reference_intensity - reference_b_);
+      const double r = sample[0] - host_term - b;
+      if (std::abs(r) > cutoff) {
+        term.kind = 2;
         continue;
+      }
+      term.kind = 3;
+      const double wg = c2 / (c2 + static_cast<double>(sample.tail<2>().squaredNorm()));
+      const double hw = huber_weight(r, k);
+      term.energy = wg * hw * r * r * (2.0 - hw);
+      if (H == nullptr) continue;
+      Matrix26d d_pose;
+      Eigen::Vector2d d_rho;
+      warp_jacobians(cam, w, t, d_pose, d_rho);
+      term.J.head<6>() =
+          (sample.tail<2>().cast<double>().transpose() * d_pose - host_term * lamp.d_log_g_d_pose).transpose();
+      term.J[6] = -host_term;
+      term.J[7] = -1.0;
+      term.W = wg * hw;
+      term.r = r;
     }
-    const double host_term = s * lamp.g * (p.reference_intensity - reference_b_);
-    const double r = sample[0] - host_term - b;
-    if (std::abs(r) > cutoff) {
-      energy += cutoff * cutoff;
-      continue;
+  };
+  // ...then summed in point order, as one loop over the points would: part 0 sums the counts,
+  // the energy, g and H's first four columns, part 1 H's last four (each entry of H gets the
+  // same additions in the same order, so the sums are the same to the bit).
+  auto sums = [&](int part) {
+    for (const PointTerm& term : terms_) {
+      if (part == 0) {
+        projected += term.kind >= 1 ? 1 : 0;
+        if (term.kind == 2) energy += cutoff * cutoff;
+        if (term.kind == 3) {
+          ++inliers;
+          energy += term.energy;
+          if (H != nullptr) *g += term.W * term.r * term.J;
+        }
+      }
+      if (term.kind != 3 || H == nullptr) continue;
+      const Vector8d WJ = term.W * term.J;
+      for (int j = 4 * part; j < 4 * part + 4; ++j) H_local.col(j) += WJ * term.J[j];
     }
-    ++inliers;
-    const double wg = c2 / (c2 + static_cast<double>(sample.tail<2>().squaredNorm()));
-    const double hw = huber_weight(r, k);
-    energy += wg * hw * r * r * (2.0 - hw);
-    if (H == nullptr) continue;
-    Matrix26d d_pose;
-    Eigen::Vector2d d_rho;
-    warp_jacobians(cam, w, t, d_pose, d_rho);
-    Vector8d J;
-    J.head<6>() = (sample.tail<2>().cast<double>().transpose() * d_pose - host_term * lamp.d_log_g_d_pose).transpose();
-    J[6] = -host_term;
-    J[7] = -1.0;
-    const double W = wg * hw;
-    H_local.noalias() += (W * J) * J.transpose();
-    *g += W * r * J;
+  };
+  // Coarse levels hold too few points to be worth the hand-over.
+  constexpr std::size_t kParallelPoints = 1024;
+  if (points.size() >= kParallelPoints) {
+    split_in_two(*helper_, points.size(), points.size() / 2, kParallelPoints, point_terms);
+    helper_->run([&] { sums(0); }, [&] { sums(1); });
+  } else {
+    point_terms(0, points.size(), 0);
+    sums(0);
+    sums(1);
   }
   if (H != nullptr) {
     *H = H_local;

@@ -8,6 +8,7 @@
 
 #include "nirslam/odometry/coarse_initializer.hpp"
 #include "nirslam/odometry/coarse_tracker.hpp"
+#include "nirslam/common/helper_thread.hpp"
 #include "nirslam/odometry/image_pyramid.hpp"
 #include "nirslam/odometry/immature_point.hpp"
 #include "nirslam/odometry/pixel_selector.hpp"
@@ -102,6 +103,9 @@ struct DirectOdometry::Impl {
   std::vector<MapPoint> archived_points;
 
   bool exposure_known = false;
+
+  // The second thread of the epipolar searches.
+  HelperThread helper;
 
   // --- helpers ---
   void start_segment(const SE3& origin) {
@@ -240,17 +244,42 @@ struct DirectOdometry::Impl {
     to.max_search_px = options.max_epipolar_search_px * image_scale;
     to.huber_threshold = options.huber_threshold;
     to.outlier_energy = options.outlier_energy;
+    // Each point's search reads only the frames and writes only the point: the points are split
+    // over two threads (the same searches, so the same results).
+    struct HostTrace {
+      std::vector<ImmaturePoint>* list;
+      SE3 T_target_host;
+      AffineTransfer affine;
+    };
+    std::vector<HostTrace> hosts;
+    std::size_t total = 0;
     for (auto& f : window->frames()) {
       auto it = immature.find(f.id);
       if (it == immature.end()) continue;
-      const SE3 T_target_host = T_cam_world * f.state.T_cam_world.inverse();
-      const AffineTransfer affine =
-          affine_transfer(f.state.affine_a, f.state.affine_b, f.exposure, a, b, exposure);
-      auto& list = it->second;
-      for (auto& ip : list) ip.trace(cameras[0], pyramid.level(0), T_target_host, affine, to);
-      list.erase(std::remove_if(list.begin(), list.end(), [](const ImmaturePoint& ip) { return ip.outliers() >= 2; }),
-                 list.end());
+      hosts.push_back({&it->second, T_cam_world * f.state.T_cam_world.inverse(),
+                       affine_transfer(f.state.affine_a, f.state.affine_b, f.exposure, a, b, exposure)});
+      total += it->second.size();
     }
+    // Blocks of 64 points alternate between the threads: the cost per point differs by host
+    // (older hosts' points are mostly bounded or out of view), so halves would not balance.
+    constexpr std::size_t kBlock = 64;
+    auto trace_part = [&](std::size_t part) {
+      std::size_t offset = 0;  // index of the host's first point in the concatenation
+      for (const HostTrace& host : hosts) {
+        for (std::size_t i = 0; i < host.list->size(); ++i)
+          if (((offset + i) / kBlock) % 2 == part)
+            (*host.list)[i].trace(cameras[0], pyramid.level(0), host.T_target_host, host.affine, to);
+        offset += host.list->size();
+      }
+    };
+    if (total < 4 * kBlock)
+      for (std::size_t part = 0; part < 2; ++part) trace_part(part);
+    else
+      helper.run([&] { trace_part(0); }, [&] { trace_part(1); });
+    for (const HostTrace& host : hosts)
+      host.list->erase(std::remove_if(host.list->begin(), host.list->end(),
+                                      [](const ImmaturePoint& ip) { return ip.outliers() >= 2; }),
+                       host.list->end());
   }
 
   void activate_points() {

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <thread>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -71,20 +70,6 @@ double lamp_value(const WindowOptions& o, const LevelCamera& camera, const Windo
   return o.lamp.enabled ? lamp_factor_value(camera.unproject(point.pixel), point.inverse_depth, R, t, o.lamp,
                                             point.normal ? &*point.normal : nullptr)
                         : 1.0;
-}
-
-// Runs body(begin, end, worker) over [0, count) on up to two threads (the machine has two
-// cores; the caller's thread does one half). Small counts stay on the caller's thread.
-template <typename Body>
-void parallel_chunks(std::size_t count, Body&& body) {
-  if (count < 256) {
-    body(std::size_t{0}, count, 0);
-    return;
-  }
-  const std::size_t half = count / 2;
-  std::thread worker([&] { body(half, count, 1); });
-  body(std::size_t{0}, half, 0);
-  worker.join();
 }
 
 // A frame's priors on its affine brightness and (when set) its pose, at its 8-block offset `o`.
@@ -187,7 +172,8 @@ double WindowOptimizer::evaluate_residuals(const std::vector<int>* only_hosts, L
     int inlier_count = 0;
   };
   std::array<Sums, 2> sums{};
-  parallel_chunks(items.size(), [&](std::size_t begin, std::size_t end, int worker) {
+  // Two halves, the caller's thread and the helper; small counts (tests) stay on the caller.
+  split_in_two(*helper_, items.size(), items.size() / 2, 256, [&](std::size_t begin, std::size_t end, int worker) {
     Sums& acc = sums[static_cast<std::size_t>(worker)];
     for (std::size_t item = begin; item < end; ++item) {
       const std::size_t h = items[item].first;
@@ -294,8 +280,15 @@ double WindowOptimizer::evaluate_residuals(const std::vector<int>* only_hosts, L
   return sums[0].energy + sums[1].energy;
 }
 
-double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool schur, double lambda,
+double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, double lambda,
                                   const std::vector<int>* only_hosts, bool include_priors) {
+  const double energy = linearize_frames(H, b, only_hosts, include_priors);
+  reduce(H, b, lambda, only_hosts);
+  return energy;
+}
+
+double WindowOptimizer::linearize_frames(Eigen::MatrixXd& H, Eigen::VectorXd& b, const std::vector<int>* only_hosts,
+                                         bool include_priors) {
   const std::size_t n = frames_.size();
   const auto N = static_cast<Eigen::Index>(8 * n);
   H.setZero(N, N);
@@ -309,11 +302,6 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
     H_rel[i] = lin.H_rel[0][i] + lin.H_rel[1][i];
     b_rel[i] = lin.b_rel[0][i] + lin.b_rel[1][i];
   }
-  auto hosts_to_use = [&](std::size_t h) {
-    return only_hosts == nullptr ||
-           std::find(only_hosts->begin(), only_hosts->end(), static_cast<int>(h)) != only_hosts->end();
-  };
-
   for (std::size_t h = 0; h < n; ++h) {
     for (std::size_t t = 0; t < n; ++t) {
       if (h == t) continue;
@@ -338,31 +326,44 @@ double WindowOptimizer::linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool s
     H += H_prior_;
     b += b_prior_ + H_prior_ * delta;
   }
-  const double total_energy = residual_energy + (include_priors ? frame_prior_energy() : 0.0);
+  return residual_energy + (include_priors ? frame_prior_energy() : 0.0);
+}
 
+void WindowOptimizer::reduce(Eigen::MatrixXd& H, Eigen::VectorXd& b, double lambda, const std::vector<int>* only_hosts) {
+  const std::size_t n = frames_.size();
+  auto hosts_to_use = [&](std::size_t h) {
+    return only_hosts == nullptr ||
+           std::find(only_hosts->begin(), only_hosts->end(), static_cast<int>(h)) != only_hosts->end();
+  };
   if (lambda > 0.0) H.diagonal() *= 1.0 + lambda;
-  if (!schur) return total_energy;
 
-  // Schur complement over the points: each couples its host and its inlier targets.
-  std::vector<std::pair<Eigen::Index, const Vector8d*>> coupling;
-  for (std::size_t h = 0; h < n; ++h) {
-    if (!hosts_to_use(h)) continue;
-    for (auto& point : frames_[h].points) {
-      if (point.H_pp <= 0.0) continue;
-      const double H_pp = point.H_pp * (1.0 + lambda) + 1e-12;
-      coupling.clear();
-      coupling.emplace_back(static_cast<Eigen::Index>(8 * h), &point.H_host_point);
-      for (const auto& res : point.residuals) {
-        if (!res.inlier) continue;
-        coupling.emplace_back(static_cast<Eigen::Index>(8 * index_of(res.target_id)), &res.H_target_point);
-      }
-      for (const auto& [ia, ca] : coupling) {
-        b.segment<8>(ia) -= *ca * (point.b_p / H_pp);
-        for (const auto& [ib, cb] : coupling) H.block<8, 8>(ia, ib) -= *ca * cb->transpose() / H_pp;
+  // Schur complement over the points: each couples its host and its inlier targets. Split over
+  // two threads by the block columns of H (and segments of b) each owns, those of even / odd
+  // frames (columns: H is column-major, so the threads write apart): both walk all points in the
+  // same order and each updates only its own, so every entry of H and b gets the same
+  // subtractions in the same order as on one thread (results identical to the bit).
+  auto schur_rows = [&](std::size_t parity) {
+    std::vector<std::pair<Eigen::Index, const Vector8d*>> coupling;
+    for (std::size_t h = 0; h < n; ++h) {
+      if (!hosts_to_use(h)) continue;
+      for (auto& point : frames_[h].points) {
+        if (point.H_pp <= 0.0) continue;
+        const double H_pp = point.H_pp * (1.0 + lambda) + 1e-12;
+        coupling.clear();
+        coupling.emplace_back(static_cast<Eigen::Index>(8 * h), &point.H_host_point);
+        for (const auto& res : point.residuals) {
+          if (!res.inlier) continue;
+          coupling.emplace_back(static_cast<Eigen::Index>(8 * index_of(res.target_id)), &res.H_target_point);
+        }
+        for (const auto& [ia, ca] : coupling) {
+          if (static_cast<std::size_t>(ia / 8) % 2 == parity) b.segment<8>(ia) -= *ca * (point.b_p / H_pp);
+          for (const auto& [ib, cb] : coupling)
+            if (static_cast<std::size_t>(ib / 8) % 2 == parity) H.block<8, 8>(ia, ib) -= *ca * cb->transpose() / H_pp;
+        }
       }
     }
-  }
-  return total_energy;
+  };
+  helper_->run([&] { schur_rows(0); }, [&] { schur_rows(1); });
 }
 
 double WindowOptimizer::frame_prior_energy() const {
@@ -401,7 +402,7 @@ Eigen::VectorXd WindowOptimizer::solve(const Eigen::MatrixXd& H, const Eigen::Ve
 Eigen::VectorXd WindowOptimizer::compute_step(double lambda) {
   Eigen::MatrixXd H;
   Eigen::VectorXd b;
-  linearize(H, b, true, lambda, nullptr, true);
+  linearize(H, b, lambda, nullptr, true);
   return solve(H, b, lambda);
 }
 
@@ -417,29 +418,58 @@ void WindowOptimizer::apply_step(const Eigen::VectorXd& dx, double /*lambda*/) {
 }
 
 void WindowOptimizer::backup() {
+  point_scratch_.clear();
+  residual_scratch_.clear();
   for (auto& f : frames_) {
     f.backup = f.state;
-    for (auto& p : f.points) p.backup = p.inverse_depth;
+    for (auto& p : f.points) {
+      p.backup = p.inverse_depth;
+      point_scratch_.push_back({p.H_pp, p.b_p, p.H_host_point});
+      for (const auto& r : p.residuals) residual_scratch_.push_back({r.inlier, r.energy, r.H_target_point});
+    }
   }
+  rms_backup_ = last_rms_;
 }
 
 void WindowOptimizer::restore() {
+  std::size_t point = 0;
+  std::size_t residual = 0;
   for (auto& f : frames_) {
     f.state = f.backup;
-    for (auto& p : f.points) p.inverse_depth = p.backup;
+    for (auto& p : f.points) {
+      p.inverse_depth = p.backup;
+      const PointScratch& ps = point_scratch_[point++];
+      p.H_pp = ps.H_pp;
+      p.b_p = ps.b_p;
+      p.H_host_point = ps.H_host_point;
+      for (auto& r : p.residuals) {
+        const ResidualScratch& rs = residual_scratch_[residual++];
+        r.inlier = rs.inlier;
+        r.energy = rs.energy;
+        r.H_target_point = rs.H_target_point;
+      }
+    }
   }
+  last_rms_ = rms_backup_;
 }
 
 WindowStatistics WindowOptimizer::optimize(int iterations) {
   WindowStatistics stats;
   if (frames_.size() < 2) return stats;
   // Each linearisation also gives the energy at its state, so a step is judged by linearising
-  // at its result: one pass over the residuals per accepted iteration.
+  // at its result: one pass over the residuals per accepted iteration. A rejected step restores
+  // the state and the linearisation it had (the frame system before damping, the points' blocks
+  // and residual flags): the same as linearising there again, without the pass.
   double lambda = options_.initial_lambda;
-  Eigen::MatrixXd H;
-  Eigen::VectorXd b;
-  double e = linearize(H, b, true, lambda, nullptr, true);
+  Eigen::MatrixXd H_frames;  // at the kept state, undamped, points not yet eliminated
+  Eigen::VectorXd b_frames;
+  double e = linearize_frames(H_frames, b_frames, nullptr, true);
+  Eigen::MatrixXd H = H_frames;
+  Eigen::VectorXd b = b_frames;
+  reduce(H, b, lambda, nullptr);
   stats.initial_energy = e;
+  Eigen::MatrixXd H_trial;
+  Eigen::VectorXd b_trial;
   for (int it = 0; it < iterations; ++it) {
     const Eigen::VectorXd dx = solve(H, b, lambda);
     if (!dx.allFinite()) break;
@@ -447,21 +477,22 @@ WindowStatistics WindowOptimizer::optimize(int iterations) {
     apply_step(dx, lambda);
     ++stats.iterations;
     const double next_lambda = std::max(lambda * 0.25, 1e-6);
-    const double e_new = linearize(H, b, true, next_lambda, nullptr, true);
+    const double e_new = linearize_frames(H_trial, b_trial, nullptr, true);
     if (e_new < e) {
       const bool converged = e - e_new < 1e-3 * e;
       e = e_new;
       lambda = next_lambda;
       if (converged) break;
+      H_frames.swap(H_trial);
+      b_frames.swap(b_trial);
     } else {
       restore();
       lambda *= 8.0;
-      if (lambda > 1e4 || it + 1 == iterations) {
-        e = linearize(H, b, true, lambda, nullptr, true);  // residual flags of the kept state
-        break;
-      }
-      e = linearize(H, b, true, lambda, nullptr, true);
+      if (lambda > 1e4 || it + 1 == iterations) break;
     }
+    H = H_frames;
+    b = b_frames;
+    reduce(H, b, lambda, nullptr);
   }
   stats.final_energy = e;
   for (const auto& f : frames_)
@@ -479,7 +510,7 @@ void WindowOptimizer::add_points_to_prior() {
   }
   Eigen::MatrixXd H;
   Eigen::VectorXd b;
-  linearize(H, b, true, 0.0, nullptr, false);
+  linearize(H, b, 0.0, nullptr, false);
   const std::size_t n = frames_.size();
   Eigen::VectorXd delta(static_cast<Eigen::Index>(8 * n));
   for (std::size_t i = 0; i < n; ++i) delta.segment<8>(static_cast<Eigen::Index>(8 * i)) = prior_delta(frames_[i]);
@@ -501,7 +532,7 @@ WindowFrame WindowOptimizer::marginalize_frame(int index) {
   Eigen::MatrixXd H;
   Eigen::VectorXd b;
   const std::vector<int> hosts{index};
-  linearize(H, b, true, 0.0, &hosts, false);
+  linearize(H, b, 0.0, &hosts, false);
   add_frame_priors(frames_[m], static_cast<Eigen::Index>(8 * m), H, b);
   // Moved to the first estimates, where the prior lives.
   Eigen::VectorXd delta(static_cast<Eigen::Index>(8 * n));

@@ -191,23 +191,33 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
 
   if (!previous_pyramid_.empty() && previous_pyramid_[0].size() == pyramid[0].size()) {
     next.tracks.reserve(current_.tracks.size() + static_cast<std::size_t>(options_.max_tracks));
-    for (const TrackObservation& old : current_.tracks) {
+    // Each track reads only the two pyramids and its own state: followed on two threads into
+    // their slots, then kept in the same order as one thread would.
+    const auto follow = [&](const TrackObservation& old) -> std::optional<TrackObservation> {
       const auto forward = track_patch(previous_pyramid_, pyramid, old.position, old.position, options_);
-      if (!forward || forward->residual_rms > options_.max_residual_rms) continue;
+      if (!forward || forward->residual_rms > options_.max_residual_rms) return std::nullopt;
       const auto backward = track_patch(pyramid, previous_pyramid_, forward->position, old.position, options_);
-      if (!backward || (backward->position - old.position).norm() > options_.max_forward_backward_px) continue;
+      if (!backward || (backward->position - old.position).norm() > options_.max_forward_backward_px)
+        return std::nullopt;
       TrackObservation observation;
       observation.id = old.id;
       observation.position = forward->position;
       observation.age = old.age + 1;
       observation.brightness_gain = forward->brightness_gain;
-      if (!sample_patch(pyramid[0], observation.position, observation.samples)) continue;
+      if (!sample_patch(pyramid[0], observation.position, observation.samples)) return std::nullopt;
       observation.reference = old.reference;
       if (options_.min_reference_ncc > 0.0 &&
           normalised_cross_correlation(observation.samples, observation.reference) < options_.min_reference_ncc)
-        continue;
-      next.tracks.push_back(observation);
-    }
+        return std::nullopt;
+      return observation;
+    };
+    const std::size_t count = current_.tracks.size();
+    followed_.assign(count, std::nullopt);
+    split_in_two(*helper_, count, count / 2, 64, [&](std::size_t begin, std::size_t end, int) {
+      for (std::size_t i = begin; i < end; ++i) followed_[i] = follow(current_.tracks[i]);
+    });
+    for (auto& observation : followed_)
+      if (observation) next.tracks.push_back(std::move(*observation));
     next.lost_tracks = static_cast<int>(current_.tracks.size() - next.tracks.size());
   }
   next.intensity = pyramid[0];

@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include "nirslam/geometry/se3.hpp"
+#include "nirslam/common/helper_thread.hpp"
 #include "nirslam/odometry/image_pyramid.hpp"
 #include "nirslam/odometry/photometric_residual.hpp"
 
@@ -86,6 +87,16 @@ private:
   double reference_b_ = 0.0;
   double reference_exposure_ = 1.0;
   std::vector<std::vector<LevelPoint>> levels_;
+  // One point's part of accumulate(), computed on two threads and summed in point order.
+  struct PointTerm {
+    int kind = 0;  // 0: not projected, 1: projected without a residual, 2: outlier, 3: inlier
+    double energy = 0.0;  // of an inlier
+    double W = 0.0;
+    double r = 0.0;
+    Vector8d J = Vector8d::Zero();
+  };
+  mutable std::vector<PointTerm> terms_;  // scratch of accumulate(): track() is not reentrant
+  std::shared_ptr<HelperThread> helper_ = std::make_shared<HelperThread>();
 };
 
 }  // namespace nirslam::odometry

@@ -18,6 +18,7 @@
 #include <Eigen/Core>
 
 #include "nirslam/geometry/se3.hpp"
+#include "nirslam/common/helper_thread.hpp"
 #include "nirslam/odometry/image_pyramid.hpp"
 #include "nirslam/odometry/photometric_residual.hpp"
 
@@ -153,8 +154,15 @@ private:
   double evaluate_residuals(const std::vector<int>* only_hosts, Linearization* lin);
   // Builds the frame system (H, b) with points Schur-complemented; frames in window order.
   // Returns the energy at the current state (of the hosts included; priors when included).
-  double linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, bool schur, double lambda,
-                   const std::vector<int>* only_hosts, bool include_priors);
+  double linearize(Eigen::MatrixXd& H, Eigen::VectorXd& b, double lambda, const std::vector<int>* only_hosts,
+                   bool include_priors);
+  // The first part of linearize(): the frame system before damping and before the points are
+  // eliminated (their blocks stay in the points); returns the energy.
+  double linearize_frames(Eigen::MatrixXd& H, Eigen::VectorXd& b, const std::vector<int>* only_hosts,
+                          bool include_priors);
+  // The second part: damps the diagonal by (1 + lambda) and Schur-complements the points of
+  // `only_hosts` (all when null) out, in place.
+  void reduce(Eigen::MatrixXd& H, Eigen::VectorXd& b, double lambda, const std::vector<int>* only_hosts);
   // Solves the reduced system and back-substitutes each point's step.
   Eigen::VectorXd solve(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, double lambda);
   double frame_prior_energy() const;
@@ -171,6 +179,23 @@ private:
   Eigen::MatrixXd H_prior_;  // at the frames' first estimates
   Eigen::VectorXd b_prior_;
   double last_rms_ = 0.0;
+  // The points' linearisation at the state backup() saved, for restore() (in window order).
+  struct PointScratch {
+    double H_pp;
+    double b_p;
+    Vector8d H_host_point;
+  };
+  struct ResidualScratch {
+    bool inlier;
+    double energy;
+    Vector8d H_target_point;
+  };
+  std::vector<PointScratch> point_scratch_;
+  std::vector<ResidualScratch> residual_scratch_;
+  double rms_backup_ = 0.0;
+  // The second thread of the residual passes and the Schur complement; copies share it (its
+  // run() serves one caller at a time).
+  std::shared_ptr<HelperThread> helper_ = std::make_shared<HelperThread>();
 };
 
 }  // namespace nirslam::odometry

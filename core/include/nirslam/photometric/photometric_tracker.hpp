@@ -20,12 +20,14 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
 #include <Eigen/Core>
 #include <opencv2/core/mat.hpp>
 
+#include "nirslam/common/helper_thread.hpp"
 #include "nirslam/image/frame.hpp"
 
 namespace nirslam {
@@ -131,6 +133,10 @@ private:
   std::int64_t next_id_ = 0;
   cv::Mat detection_mask_;
   std::vector<int> bucket_counts_;
+  // The tracks are followed on two threads (each track alone, so the result is the same);
+  // copies share the helper, which serves one caller at a time.
+  std::vector<std::optional<TrackObservation>> followed_;
+  std::shared_ptr<HelperThread> helper_ = std::make_shared<HelperThread>();
 };
 
 }  // namespace nirslam

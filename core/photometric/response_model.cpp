@@ -181,10 +181,19 @@ double VignetteModel::radius(double col, double row, int width, int height) {
 }
 
 cv::Mat VignetteModel::render(int width, int height) const {
+  // V is a polynomial in r^2: no square roots per pixel (the corrected frames re-render V at
+  // every small step of the model they follow).
   cv::Mat map(height, width, CV_32FC1);
+  const double cx = 0.5 * (width - 1), cy = 0.5 * (height - 1);
+  const double half_diagonal_sq = cx * cx + cy * cy;
+  const double to_r2 = half_diagonal_sq > 0.0 ? 1.0 / half_diagonal_sq : 0.0;
   for (int y = 0; y < height; ++y) {
     float* row = map.ptr<float>(y);
-    for (int x = 0; x < width; ++x) row[x] = static_cast<float>((*this)(radius(x, y, width, height)));
+    const double dy2 = (y - cy) * (y - cy);
+    for (int x = 0; x < width; ++x) {
+      const double r2 = ((x - cx) * (x - cx) + dy2) * to_r2;
+      row[x] = static_cast<float>(1.0 + r2 * (v[0] + r2 * (v[1] + r2 * v[2])));
+    }
   }
   return map;
 }

@@ -43,6 +43,13 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_TRUE(config.worker.pipeline.odometry.lamp_factor_derivatives);
 }
 
+TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
+  const PipelineConfig config =
+      load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-repeatable.yaml");
+  EXPECT_FALSE(config.worker.pipeline.calibration.background_thread);
+  EXPECT_EQ(config.worker.pipeline.mode, PipelineOptions{}.mode);
+}
+
 TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   const PipelineConfig config = load_pipeline_config(write_yaml(
       "stages", "pipeline:\n  mode: odometry\n  corrected_frame_exponent: 1.0\nodometry:\n  points_per_frame: 1500\n"

@@ -98,6 +98,10 @@ TEST(VignetteModel, IsOneAtTheCentreAndReachesTheCornersAtRadiusOne) {
   EXPECT_NEAR(VignetteModel::radius(319.5, 239.5, 640, 480), 0.0, 1e-12);
   const cv::Mat map = v.render(640, 480);
   EXPECT_NEAR(map.at<float>(0, 0), 0.7f, 1e-6);
+  // The map (from r^2 directly) is V(radius) at every pixel, also for odd sizes.
+  const cv::Mat odd = v.render(97, 61);
+  for (int y = 0; y < odd.rows; ++y)
+    for (int x = 0; x < odd.cols; ++x) ASSERT_NEAR(odd.at<float>(y, x), v(VignetteModel::radius(x, y, 97, 61)), 1e-6) << x << "," << y;
   EXPECT_FALSE(VignetteModel{Eigen::Vector3d(0.5, 0.0, 0.0)}.is_plausible());  // brighter at the rim
   EXPECT_FALSE(VignetteModel{Eigen::Vector3d(-1.5, 0.0, 0.0)}.is_plausible()); // negative
 }

@@ -165,24 +165,35 @@ TEST(PhotometricBackend, RecoversResponseAndVignetteWithKnownExposures) {
   EXPECT_TRUE(backend.response().is_monotonic());
 }
 
+// The vignette alone fitted by the batch optimisation to exact synthetic keyframes under
+// `vignette`, the response held at the gamma preset that made them (bright radiances, so points
+// stay above black where V is low).
+struct VignetteFit {
+  BackendStep step;
+  VignetteModel vignette;
+};
+VignetteFit fit_vignette_alone(const VignetteModel& vignette, PhotometricBackendOptions options) {
+  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
+  options.initial_response = truth;
+  options.estimate_response = false;
+  PhotometricBackend backend(options);
+  for (auto& kf : synthetic(truth, vignette, 20, 60, true, true, 0.5, 4).keyframes) backend.add_keyframe(std::move(kf));
+  const BackendStep step = backend.optimise(60, true);
+  return {step, backend.vignette()};
+}
+
 // Data whose best-fitting V rises again towards the rim (as a co-located lamp's halo can make it
 // look): with vignette_monotonic every accepted step keeps V falling; without it, the fit follows
 // the data's rise (which shows the constraint is what keeps it plausible).
 TEST(PhotometricBackend, VignetteStaysPlausibleWhenDataRiseAtTheRim) {
-  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
   const VignetteModel rising{Eigen::Vector3d(-0.6, 0.6, 0.0)};  // 1 at the centre and at the rim, 0.85 between
   ASSERT_FALSE(rising.is_plausible());
   for (const bool monotonic : {true, false}) {
     PhotometricBackendOptions options;
-    options.initial_response = truth;
-    options.estimate_response = false;
     options.vignette_monotonic = monotonic;
-    PhotometricBackend backend(options);
-    for (auto& kf : synthetic(truth, rising, 20, 60, true, true, 0.5, 4).keyframes) backend.add_keyframe(std::move(kf));
-    const BackendStep step = backend.optimise(60, true);
+    const auto [step, V] = fit_vignette_alone(rising, options);
     ASSERT_TRUE(step.ok) << step.status;
     ASSERT_TRUE(step.vignette_estimated) << step.status;
-    const VignetteModel& V = backend.vignette();
     std::printf("monotonic %d: V(0.7) %.4f V(1) %.4f, %s\n", monotonic, V(0.7), V(1.0), step.status.c_str());
     if (monotonic) {
       EXPECT_TRUE(V.is_plausible());
@@ -241,22 +252,15 @@ TEST(PhotometricBackend, MonotoneVignetteParametrisation) {
 // start is on the boundary: V' = 0 everywhere), max |V - truth| 0.827 and residual 15 grey levels;
 // monotone steps reach the truth (0.0000, residual 0.00).
 TEST(PhotometricBackend, SteepHaloFactorNeedsMonotoneSteps) {
-  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
-  const VignetteModel halo{Eigen::Vector3d(-2.345, 2.591, -1.117)};
+  const VignetteModel halo{Eigen::Vector3d(-2.345, 2.591, -1.117)};  // darkens the rim to 0.13
   ASSERT_TRUE(halo.is_plausible());
   double error[2] = {0.0, 0.0};
   for (const VignetteSteps steps : {VignetteSteps::Bisected, VignetteSteps::Monotone}) {
     PhotometricBackendOptions options;
-    options.initial_response = truth;
-    options.estimate_response = false;
     options.vignette_steps = steps;
-    PhotometricBackend backend(options);
-    // Bright radiances: the halo darkens the rim to 0.13, and the synthetic points must stay above black there.
-    for (auto& kf : synthetic(truth, halo, 20, 60, true, true, 0.5, 4).keyframes) backend.add_keyframe(std::move(kf));
-    const BackendStep step = backend.optimise(60, true);
+    const auto [step, V] = fit_vignette_alone(halo, options);
     ASSERT_TRUE(step.ok) << step.status;
     ASSERT_TRUE(step.vignette_estimated) << step.status;
-    const VignetteModel& V = backend.vignette();
     EXPECT_TRUE(V.is_plausible());
     double& worst = error[steps == VignetteSteps::Monotone];
     for (double r = 0.0; r <= 1.0; r += 0.05) worst = std::max(worst, std::abs(V(r) - halo(r)));

@@ -135,6 +135,9 @@ void ExposureEstimator::anchor_all(const TrackedFrame& tracked, double log_expos
   for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
     const std::int64_t id = tracked.tracks[i].id;
     if (!irradiance_valid_[i] || (only_new && anchors_.count(id) != 0)) continue;
+    // A track without the light's factor here (no distance yet) is anchored once it has one:
+    // anchored now, every later ratio to this anchor would be unknown for the track's whole life.
+    if (log_illumination != nullptr && !std::isfinite((*log_illumination)[i])) continue;
     anchors_[id] = Anchor{irradiance_[i], weight_[i], log_exposure, log_illumination ? (*log_illumination)[i] : 0.0};
   }
 }
@@ -206,6 +209,16 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
   }
   anchors_.swap(alive);
 
+  // Under the lamp a track counts only once it has a light factor; when too few anchored tracks
+  // have one now (patches whose distances came and went) but enough tracks do, restart the chain
+  // on them, as when all anchored tracks are lost: else no new track is ever anchored (anchoring
+  // happens after an estimate) and the estimator stays without one for the rest of the sequence.
+  if (log_illumination != nullptr && log_exposure_ && static_cast<int>(candidates_.size()) < options_.min_tracks) {
+    int lit = 0;
+    for (std::size_t i = 0; i < tracked.tracks.size(); ++i)
+      lit += irradiance_valid_[i] && std::isfinite((*log_illumination)[i]);
+    if (lit >= options_.min_tracks) anchors_.clear();
+  }
   if (!log_exposure_ || anchors_.empty()) {
     if (usable < options_.min_tracks)
       return keep(tracked, log_exposure_ ? ExposureStatus::TooFewTracks : ExposureStatus::NoEstimateYet,

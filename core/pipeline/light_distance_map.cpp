@@ -26,6 +26,7 @@ void LightDistanceMap::clear() {
 void LightDistanceMap::build(std::span<const Eigen::Vector3d> points_world, const SE3& T_world_cam,
                              const Eigen::Vector3d& light_offset_cam) {
   const SE3 T_cam_world = T_world_cam.inverse();
+  light_offset_cam_ = light_offset_cam;
   unsorted_.clear();
   unsorted_cell_.clear();
   for (const Eigen::Vector3d& p_world : points_world) {
@@ -36,7 +37,8 @@ void LightDistanceMap::build(std::span<const Eigen::Vector3d> points_world, cons
     const int cx = std::clamp(static_cast<int>(pixel->x()) / cell_px_, 0, cells_x_ - 1);
     const int cy = std::clamp(static_cast<int>(pixel->y()) / cell_px_, 0, cells_y_ - 1);
     const Eigen::Vector3d p_light = p_cam - light_offset_cam;
-    unsorted_.push_back({pixel->cast<float>(), static_cast<float>(std::log(p_light.norm())), p_light.cast<float>()});
+    unsorted_.push_back({pixel->cast<float>(), static_cast<float>(std::log(p_light.norm())),
+                         static_cast<float>(1.0 / p_cam.z()), p_light.cast<float>()});
     unsorted_cell_.push_back(cell_of(cx, cy));
   }
   // Counting sort by cell: a query then reads a 3x3 block of cells.
@@ -82,18 +84,102 @@ std::optional<double> LightDistanceMap::median_distance(const std::array<const E
   return std::exp(static_cast<double>(*middle));
 }
 
+std::optional<double> LightDistanceMap::distance_at(const Eigen::Vector2d& pixel,
+                                                    const std::array<const Entry*, kMaxNeighbours>& near,
+                                                    std::size_t n, Eigen::Vector3d* plane_normal) const {
+  const std::optional<double> median = median_distance(near, n);
+  if (!median) return median;
+  // Inliers: within the band (or 3 MADs) of the median in log distance.
+  const double log_median = std::log(*median);
+  std::array<float, kMaxNeighbours> deviations{};
+  for (std::size_t i = 0; i < n; ++i) deviations[i] = std::abs(near[i]->log_light_distance - static_cast<float>(log_median));
+  const auto middle = deviations.begin() + static_cast<std::ptrdiff_t>(n / 2);
+  std::nth_element(deviations.begin(), middle, deviations.begin() + static_cast<std::ptrdiff_t>(n));
+  if (options_.max_log_spread > 0.0 && static_cast<double>(*middle) > options_.max_log_spread) return std::nullopt;
+  if (!options_.fit_inverse_depth_plane || static_cast<int>(n) < options_.min_fit_points) return median;
+  const double band = std::max(options_.inlier_log_band, 3.0 * 1.4826 * static_cast<double>(*middle));
+  // Least squares for 1/z = a + b du + c dv, offsets in units of the radius (conditioning).
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  float low = std::numeric_limits<float>::max(), high = 0.0f;
+  int inliers = 0;
+  const double scale = 1.0 / radius_px_;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Entry& e = *near[i];
+    if (std::abs(static_cast<double>(e.log_light_distance) - log_median) > band) continue;
+    const Eigen::Vector3d row(1.0, (e.pixel.x() - pixel.x()) * scale, (e.pixel.y() - pixel.y()) * scale);
+    normal.noalias() += row * row.transpose();
+    rhs += row * static_cast<double>(e.inverse_depth);
+    low = std::min(low, e.inverse_depth);
+    high = std::max(high, e.inverse_depth);
+    ++inliers;
+  }
+  if (inliers < options_.min_fit_points) return median;
+  // The neighbours must spread in both image directions (points along a line leave the tilt
+  // across it open): the pixel offsets' scatter about their mean, smallest eigenvalue.
+  const double count = normal(0, 0);
+  const Eigen::Vector2d mean = normal.block<2, 1>(1, 0) / count;
+  const Eigen::Matrix2d spread = normal.block<2, 2>(1, 1) / count - mean * mean.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> spread_eigen(spread, Eigen::EigenvaluesOnly);
+  if (!(spread_eigen.eigenvalues()[0] > 0.02)) return median;  // (0.14 radius)^2
+  const Eigen::Vector3d plane = normal.ldlt().solve(rhs);
+  // At the pixel; never beyond the inliers' own inverse depths (no extrapolation off an edge).
+  const double inverse_depth = std::clamp(plane[0], static_cast<double>(low), static_cast<double>(high));
+  const auto ray = camera_.unproject(pixel);
+  if (!ray || !(inverse_depth > 0.0) || !std::isfinite(inverse_depth)) return median;
+  if (plane_normal != nullptr) {
+    // The same plane in 3-D: with (x, y) the normalised image coordinates (ray = (x, y, 1)),
+    // 1/z = alpha + beta x + gamma y is the plane (beta, gamma, alpha) . p = 1. The pixel
+    // gradient (b, c) / radius maps to (beta, gamma) through the inverse transpose of
+    // d(x, y)/d(u, v), taken by differences of unproject (any camera model).
+    const auto ray_u = camera_.unproject(pixel + Eigen::Vector2d(1.0, 0.0));
+    const auto ray_v = camera_.unproject(pixel + Eigen::Vector2d(0.0, 1.0));
+    if (ray_u && ray_v) {
+      Eigen::Matrix2d d_xy_d_uv;
+      d_xy_d_uv.col(0) = (*ray_u - *ray).head<2>();
+      d_xy_d_uv.col(1) = (*ray_v - *ray).head<2>();
+      const Eigen::Vector2d slope = d_xy_d_uv.transpose().inverse() * (plane.tail<2>() * scale);
+      const Eigen::Vector3d plane_n(slope.x(), slope.y(), plane[0] - slope.dot(ray->head<2>()));
+      if (plane_n.allFinite() && plane_n.norm() > 0.0) *plane_normal = plane_n.normalized();
+    }
+  }
+  return (*ray / inverse_depth - light_offset_cam_).norm();
+}
+
 std::optional<double> LightDistanceMap::light_distance(const Eigen::Vector2d& pixel) const {
   std::array<const Entry*, kMaxNeighbours> near{};
-  return median_distance(near, neighbours(pixel, near));
+  return distance_at(pixel, near, neighbours(pixel, near));
 }
 
 std::optional<LightGeometry> LightDistanceMap::light_geometry(const Eigen::Vector2d& pixel) const {
   std::array<const Entry*, kMaxNeighbours> near{};
   const std::size_t n = neighbours(pixel, near);
-  const std::optional<double> distance = median_distance(near, n);
+  Eigen::Vector3d fitted_normal = Eigen::Vector3d::Zero();
+  const std::optional<double> distance = distance_at(pixel, near, n, &fitted_normal);
   if (!distance) return std::nullopt;
   LightGeometry geometry;
   geometry.distance = *distance;
+  if (options_.normal_from_inverse_depth_plane) {
+    if (fitted_normal.isZero()) return geometry;
+    const auto ray = camera_.unproject(pixel);
+    if (!ray) return geometry;
+    // The surface point on the ray at that distance from the lamp, and the light's incidence.
+    const Eigen::Vector3d direction = ray->normalized();
+    const double along = direction.dot(light_offset_cam_);
+    const double t = along + std::sqrt(std::max(0.0, along * along - light_offset_cam_.squaredNorm() + *distance * *distance));
+    const Eigen::Vector3d to_lamp = (light_offset_cam_ - t * direction).normalized();
+    double cosine = fitted_normal.dot(to_lamp);
+    Eigen::Vector3d normal = fitted_normal;
+    if (cosine < 0.0) {
+      cosine = -cosine;
+      normal = -normal;
+    }
+    if (cosine >= options_.min_cosine && cosine <= 1.0) {
+      geometry.cosine = cosine;
+      geometry.normal_cam = normal;
+    }
+    return geometry;
+  }
   if (static_cast<int>(n) < options_.min_plane_points) return geometry;
   // Plane through the neighbours (relative to the lamp: the offset cancels in the scatter).
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();

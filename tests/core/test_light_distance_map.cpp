@@ -96,7 +96,10 @@ namespace {
 
 TEST(LightDistanceMap, CosineOfTheLightOnAPlane) {
   const PinholeCamera camera(640, 480, Eigen::Vector4d(500.0, 500.0, 320.0, 240.0));
-  LightDistanceMap map(camera);
+  // Without the spread gate: the floor's depth changes fast across the radius near the horizon.
+  LightDistanceMapOptions options;
+  options.max_log_spread = 0.0;
+  LightDistanceMap map(camera, options);
   // A floor 1.5 m below the camera (y down), seen ahead: the light grazes it far away.
   std::vector<Eigen::Vector3d> points;
   for (int y = 250; y < 480; y += 5)
@@ -130,6 +133,81 @@ TEST(LightDistanceMap, CosineOfTheLightOnAPlane) {
   const auto geometry = map.light_geometry(Eigen::Vector2d(320.0, 240.0));
   ASSERT_TRUE(geometry);
   EXPECT_FALSE(geometry->cosine);
+}
+
+}  // namespace
+}  // namespace nirslam
+
+namespace nirslam {
+namespace {
+
+// A wall turned 60 degrees about the vertical axis (depth grows to the right), most points on
+// the left of the queried pixel: the median of the neighbours takes their nearer depth, the
+// plane in inverse depth evaluated at the pixel itself does not.
+TEST(LightDistanceMap, PlaneFitGivesTheDistanceAtThePixelItself) {
+  const PinholeCamera camera = camera_640();
+  // The plane n . p = 2 with n = (-sin 60, 0, cos 60): z = 2 / (cos 60 - sin 60 x) for a ray (x, y, 1).
+  const Eigen::Vector3d n(-std::sin(M_PI / 3.0), 0.0, std::cos(M_PI / 3.0));
+  const auto on_wall = [&](const Eigen::Vector2d& pixel) {
+    const Eigen::Vector3d ray = *camera.unproject(pixel);
+    return Eigen::Vector3d(ray * (2.0 / n.dot(ray)));
+  };
+  // Five columns of points left of the pixel, one to its right (so it lies inside them).
+  std::vector<Eigen::Vector3d> points;
+  for (int y = 224; y <= 256; y += 4) {
+    for (int x = 280; x <= 296; x += 4) points.push_back(on_wall(Eigen::Vector2d(x, y)));
+    points.push_back(on_wall(Eigen::Vector2d(312.0, y)));
+  }
+  const Eigen::Vector2d pixel(300.0, 240.0);
+  const double truth = on_wall(pixel).norm();
+  LightDistanceMapOptions options;
+  options.max_log_spread = 0.0;  // the wall's own slope is not noise
+  LightDistanceMap fitted(camera, options);
+  fitted.build(points, SE3::identity(), Eigen::Vector3d::Zero());
+  options.fit_inverse_depth_plane = false;
+  LightDistanceMap median(camera, options);
+  median.build(points, SE3::identity(), Eigen::Vector3d::Zero());
+  const auto d_fit = fitted.light_distance(pixel);
+  const auto d_median = median.light_distance(pixel);
+  ASSERT_TRUE(d_fit && d_median);
+  std::printf("60-degree wall at %.3f m: plane fit %.4f, median %.4f\n", truth, *d_fit, *d_median);
+  EXPECT_NEAR(*d_fit / truth, 1.0, 1e-5) << "exact on a plane (float inverse depths)";
+  EXPECT_LT(*d_median / truth, 0.985) << "the median takes the nearer side";  // measured 0.976 (this test)
+  // The fitted plane's normal gives the cosine of the light (the lamp at the camera centre).
+  options.fit_inverse_depth_plane = true;
+  options.normal_from_inverse_depth_plane = true;
+  LightDistanceMap with_normal(camera, options);
+  with_normal.build(points, SE3::identity(), Eigen::Vector3d::Zero());
+  const auto geometry = with_normal.light_geometry(pixel);
+  ASSERT_TRUE(geometry && geometry->cosine && geometry->normal_cam);
+  const Eigen::Vector3d surface = on_wall(pixel);
+  EXPECT_NEAR(*geometry->cosine, std::abs(n.dot(surface.normalized())), 1e-5);
+  EXPECT_NEAR(std::abs(geometry->normal_cam->dot(n)), 1.0, 1e-5);
+}
+
+// The spread gate: neighbours whose distances scatter (a depth edge, unconverged points) give no
+// distance; the same wall with a 1 % scatter does.
+TEST(LightDistanceMap, NoDistanceWhereTheNeighboursDisagree) {
+  const PinholeCamera camera = camera_640();
+  LightDistanceMap map(camera);  // default gate: median absolute deviation 0.05 in log distance
+  std::vector<Eigen::Vector3d> quiet, scattered;
+  int i = 0;
+  for (int y = 200; y < 280; y += 4)
+    for (int x = 280; x < 360; x += 4, ++i) {
+      // A fixed pseudo-random sign pattern with two amplitudes, the same for both clouds.
+      const double u = static_cast<double>((i * 7919) % 17) / 16.0 - 0.5;  // -0.5 .. 0.5
+      const Eigen::Vector3d ray = *camera.unproject(Eigen::Vector2d(x, y));
+      quiet.push_back(ray * 2.0 * std::exp(0.02 * u));
+      scattered.push_back(ray * 2.0 * std::exp(0.6 * u));
+    }
+  const Eigen::Vector2d pixel(320.0, 240.0);
+  map.build(quiet, SE3::identity(), Eigen::Vector3d::Zero());
+  const auto d = map.light_distance(pixel);
+  ASSERT_TRUE(d);
+  EXPECT_NEAR(*d, 2.0, 0.02);
+  map.build(scattered, SE3::identity(), Eigen::Vector3d::Zero());
+  EXPECT_FALSE(map.light_distance(pixel)) << "scatter +-30 % in distance";
+  EXPECT_FALSE(map.light_geometry(pixel));
 }
 
 }  // namespace

@@ -30,7 +30,9 @@ struct KeyframeLightOffsetOptions {
   // out by pixel, which is wrong by as much as the offset's own effect (light_offset_estimator.hpp):
   // with m known it is multiplied back per pixel and the estimator models it from the lamp.
   double beam_exponent = 0.0;
-  LightDistanceMapOptions normals{.search_radius_px = 40.0, .min_neighbours = 3, .min_plane_points = 8,
+  // Only the normals are used here: the distance gate and fit (for the calibration) stay off.
+  LightDistanceMapOptions normals{.search_radius_px = 40.0, .min_neighbours = 3, .max_log_spread = 0.0,
+                                  .fit_inverse_depth_plane = false, .min_plane_points = 8,
                                   .max_plane_flatness = 0.15, .min_cosine = 0.3};
   LightOffsetEstimatorOptions estimator;
 };

@@ -162,6 +162,7 @@ TEST(LightDistanceMap, PlaneFitGivesTheDistanceAtThePixelItself) {
   const double truth = on_wall(pixel).norm();
   LightDistanceMapOptions options;
   options.max_log_spread = 0.0;  // the wall's own slope is not noise
+  options.fit_inverse_depth_plane = true;
   LightDistanceMap fitted(camera, options);
   fitted.build(points, SE3::identity(), Eigen::Vector3d::Zero());
   options.fit_inverse_depth_plane = false;
@@ -189,7 +190,9 @@ TEST(LightDistanceMap, PlaneFitGivesTheDistanceAtThePixelItself) {
 // distance; the same wall with a 1 % scatter does.
 TEST(LightDistanceMap, NoDistanceWhereTheNeighboursDisagree) {
   const PinholeCamera camera = camera_640();
-  LightDistanceMap map(camera);  // default gate: median absolute deviation 0.05 in log distance
+  LightDistanceMapOptions options;
+  options.max_log_spread = 0.05;  // median absolute deviation in log distance
+  LightDistanceMap map(camera, options);
   std::vector<Eigen::Vector3d> quiet, scattered;
   int i = 0;
   for (int y = 200; y < 280; y += 4)

@@ -269,7 +269,7 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   // The map's knobs, to reproduce the README's comparisons (light_distance_map.hpp).
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_MAX_LOG_SPREAD")) options.light_distances.max_log_spread = std::atof(v);
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_DISTANCE_RADIUS")) options.light_distances.search_radius_px = std::atof(v);
-  if (std::getenv("NIRSLAM_PIPELINE_DISTANCE_MEDIAN") != nullptr) options.light_distances.fit_inverse_depth_plane = false;
+  if (std::getenv("NIRSLAM_PIPELINE_PLANE_FIT") != nullptr) options.light_distances.fit_inverse_depth_plane = true;
   if (std::getenv("NIRSLAM_PIPELINE_PLANE_NORMAL") != nullptr) options.light_distances.normal_from_inverse_depth_plane = true;
   options.lamp_cosine_to_calibration = std::getenv("NIRSLAM_PIPELINE_COSINE") != nullptr;
   SlamPipeline pipeline(options, simulator.camera());

@@ -32,14 +32,17 @@ struct LightDistanceMapOptions {
   // 80 % in brightness) for 15-23 % of the tracked surface points in the co-lit parking and
   // tunnel runs, against 0.3-1 % with the gate (README, the pipeline co-lit table). It also
   // leaves out surfaces whose depth changes fast across the radius (a floor near the horizon),
-  // where the light's missing cos(theta) changes most.
-  double max_log_spread = 0.05;
+  // where the light's missing cos(theta) changes most. Off by default: with it (0.05) the
+  // calibration's halo factor improved but the 'illuminated' odometry got worse on 8 of the 12
+  // bench sequences together with the plane fit (parking 50 / 100 W 0.06 -> 0.22 m; README,
+  // "Illuminator correction").
+  double max_log_spread = 0.0;
   // The distance where the neighbours allow it from a plane in inverse depth fitted to them
   // (1/z affine in the pixel, exact for a planar surface seen by a pinhole), evaluated at the
   // pixel itself, rather than their median (which takes the side most neighbours lie on).
   // Neighbours further than inlier_log_band (or 3 MADs, the larger) in log distance from their
   // median are left out of the fit; the result never leaves the inliers' inverse-depth range.
-  bool fit_inverse_depth_plane = true;
+  bool fit_inverse_depth_plane = false;  // off: no gain measured in the pipeline, and parking 100 W got worse
   int min_fit_points = 6;
   double inlier_log_band = 0.1;
   // cos(theta) of the lamp's light on the surface, from a plane fitted to the neighbours: at

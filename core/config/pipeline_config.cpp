@@ -47,6 +47,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   stages.read<double>("lamp_distance_max_log_spread", pipeline.light_distances.max_log_spread, 0.0, 10.0);
   stages.read_flag("lamp_distance_plane_fit", pipeline.light_distances.fit_inverse_depth_plane);
   stages.read_flag("lamp_cosine_to_calibration", pipeline.lamp_cosine_to_calibration);
+  stages.read<int>("hold_correction_frames", pipeline.hold_correction_frames, -1, 100000);
   stages.reject_unknown_keys();
 
   YamlMapReader odometry(root["odometry"], file, "odometry");
@@ -78,6 +79,9 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read_flag("estimate_model", pipeline.calibration.run_backend);
   calibration.read<int>("iterations_per_keyframe", pipeline.calibration.iterations_per_keyframe, 1, 100);
   calibration.read<int>("queue_capacity", pipeline.calibration.queue_capacity, 1, 1000);
+  calibration.read<double>("max_residual_grey", pipeline.calibration.gate.max_residual_rms, 0.0, 255.0);
+  calibration.read<double>("max_response_slope", pipeline.calibration.gate.max_response_slope, 0.0, 100.0);
+  calibration.read<double>("min_response_slope", pipeline.calibration.gate.min_response_slope, 0.0, 100.0);
   if (const auto lens = calibration.read_text("lens_vignette")) {
     // Relative to the config file, so a rig's folder can carry its own calibration.
     std::filesystem::path lens_file(*lens);

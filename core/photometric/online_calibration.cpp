@@ -42,11 +42,55 @@ std::optional<std::pair<double, double>> trusted_grey_range(const OnlineCalibrat
   return std::make_pair(model.grey_low, model.grey_high);
 }
 
+// log G at grey level `grey` (0..255), G in grey-level units.
+double log_inverse_response(const ResponseModel& response, double grey) {
+  return std::log(std::max(255.0 * response.inverse(grey / 255.0), 1e-9));
+}
+
 double milliseconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
 }  // namespace
+
+std::string estimate_rejection(const EstimateGate& gate, const ResponseModel& response, double grey_low,
+                               double grey_high, double residual_rms) {
+  char text[240];
+  if (gate.max_residual_rms > 0.0 && residual_rms > gate.max_residual_rms) {
+    std::snprintf(text, sizeof text,
+                  "residual %.2f grey levels > %.2f: the model does not fit these frames (a lamp's distance change "
+                  "read as radiance change?)",
+                  residual_rms, gate.max_residual_rms);
+    return text;
+  }
+  if ((gate.max_response_slope > 0.0 || gate.min_response_slope > 0.0) && grey_high > grey_low) {
+    // Slopes over steps of 10 % in grey level: fine enough to see a jump, coarse enough that
+    // the 8-bit quantisation of the observed range does not matter.
+    constexpr double kStep = 1.1;
+    const double low = std::max(grey_low, 8.0);
+    double steepest = 0.0, flattest = 1e9, steep_at = low, flat_at = low;
+    for (double g = low; g * kStep <= grey_high; g *= kStep) {
+      const double slope = (log_inverse_response(response, g * kStep) - log_inverse_response(response, g)) / std::log(kStep);
+      if (slope > steepest) steepest = slope, steep_at = g;
+      if (slope < flattest) flattest = slope, flat_at = g;
+    }
+    if (gate.max_response_slope > 0.0 && steepest > gate.max_response_slope) {
+      std::snprintf(text, sizeof text,
+                    "response implausible: d log G / d log I = %.1f at grey %.0f (above %.1f) inside the observed "
+                    "range %.0f-%.0f",
+                    steepest, steep_at, gate.max_response_slope, grey_low, grey_high);
+      return text;
+    }
+    if (gate.min_response_slope > 0.0 && flattest < gate.min_response_slope) {
+      std::snprintf(text, sizeof text,
+                    "response implausible: d log G / d log I = %.2f at grey %.0f (below %.2f) inside the observed "
+                    "range %.0f-%.0f",
+                    flattest, flat_at, gate.min_response_slope, grey_low, grey_high);
+      return text;
+    }
+  }
+  return {};
+}
 
 OnlinePhotometricCalibration::OnlinePhotometricCalibration(OnlineCalibrationOptions options)
     : options_(std::move(options)),
@@ -139,7 +183,9 @@ void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& mo
 }
 
 void OnlinePhotometricCalibration::correct(const Frame& frame, const TrackedFrame& tracked, cv::Mat& out) {
-  follow_estimate(*estimate());
+  // Held (hold_correction): the frames keep the model they were corrected with; the first frame
+  // still takes the estimate as it is.
+  if (!correction_held_ || correction_version_ < 0) follow_estimate(*estimate());
   const int version = correction_version_;
   if (inverse_vignette_version_ != version || inverse_vignette_.cols != frame.width() ||
       inverse_vignette_.rows != frame.height()) {
@@ -246,7 +292,12 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
 void OnlinePhotometricCalibration::publish(const BackendStep& step) {
   auto e = std::make_shared<PhotometricEstimate>();
   const std::shared_ptr<const PhotometricEstimate> previous = estimate();
-  if (step.ok && step.updated) {
+  // The gate (EstimateGate): an estimate that fails it is not handed on; the last good one stays.
+  const std::string rejection = step.ok && step.updated ? estimate_rejection(options_.gate, backend_.response(), step.grey_low,
+                                                                             step.grey_high, step.residual_rms)
+                                                        : std::string();
+  e->estimates_rejected = previous->estimates_rejected + (rejection.empty() ? 0 : 1);
+  if (step.ok && step.updated && rejection.empty()) {
     e->response = backend_.response();
     e->vignette = backend_.vignette();
     e->model_version = ++version_;
@@ -263,8 +314,9 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
   e->keyframes = step.keyframes;
   e->points = step.points;
   e->backend_ms = last_backend_ms_;
-  e->grey_low = step.ok && step.updated ? step.grey_low : previous->grey_low;
-  e->grey_high = step.ok && step.updated ? step.grey_high : previous->grey_high;
+  const bool adopted = step.ok && step.updated && rejection.empty();
+  e->grey_low = adopted ? step.grey_low : previous->grey_low;
+  e->grey_high = adopted ? step.grey_high : previous->grey_high;
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     e->keyframes_dropped = dropped_;
@@ -291,7 +343,9 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
           "the prior towards the initial response";
     }
   }
-  e->status = step.status;
+  e->status = rejection.empty() ? step.status
+                                : step.status + "; NOT USED, " + rejection + "; last good estimate (version " +
+                                      std::to_string(previous->model_version) + ") kept";
   e->keyframe_exposures = backend_.keyframe_exposures();
   std::lock_guard<std::mutex> lock(estimate_mutex_);
   estimate_ = std::move(e);

@@ -154,6 +154,10 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
 
   if (calibration_) {
     const auto start = Clock::now();
+    // The correction holds its model until the odometry has tracked for a while (see
+    // PipelineOptions::hold_correction_frames).
+    if (odometry_ && options_.hold_correction_frames >= 0)
+      calibration_->hold_correction(frames_tracking_ <= options_.hold_correction_frames);
     CorrectedFrame corrected;
     if (predict_light_distances()) {
       FrameIllumination illumination;
@@ -203,6 +207,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     input.illuminator_power_w = frame.illuminator_power_w;
     result.timings.undistort_ms = ms_since(start);
     OdometryResult odometry = odometry_->process(input);
+    frames_tracking_ = odometry.status == TrackingStatus::Tracking ? frames_tracking_ + 1 : 0;
     result.timings.odometry_ms = odometry.timings.total_ms;
     result.timings.mapping_ms = odometry.timings.mapping_ms;
     update_trajectory(frame, odometry);

@@ -67,6 +67,7 @@ struct PhotometricEstimate {  // immutable once published
   AmbiguityResolution ambiguity = AmbiguityResolution::Normalisation;
   std::string ambiguity_detail;  // e.g. "exposure times reported by the source"
   std::string status;            // human-readable convergence status / why nothing yet
+  int estimates_rejected = 0;    // back-end estimates the gate kept from the frames so far (EstimateGate)
   double backend_ms = 0.0;       // wall time of the optimisation that produced this estimate
   double grey_low = 0.0;         // 1st / 99th percentile of the grey values the fit saw: the
   double grey_high = 0.0;        // response is extrapolated outside this range
@@ -90,6 +91,29 @@ struct CorrectedFrame {
   int model_version = 0;           // of the model that corrected this frame
 };
 
+// Which back-end estimates may reach the corrected frames and the exposure front end (issues 6
+// and 8: a calibration whose model does not fit "leaves the last good estimate in place and says
+// why"). The back end keeps iterating from its own state either way; only what is handed on is
+// gated, so a later estimate that fits again gets through.
+struct EstimateGate {
+  // The back end's inlier residual (grey levels) above which the model is taken not to fit the
+  // data: under a co-located lamp, calibration without the lamp factor sees the lamp's distance
+  // change as radiance change and bends the response to absorb it, and its residual grows with
+  // every keyframe (README "Illuminator correction"). 0: off.
+  double max_residual_rms = 0.0;
+  // Bounds on the inverse response's log-log slope, d log G / d log I, between grey levels 10 %
+  // apart inside the range the fit saw (PhotometricEstimate::grey_low..grey_high, from grey 8
+  // on): a camera's response is close to a power law there (gamma 1..3 for the curves the basis
+  // is built on: slope 1..3), while a response that is flat over the observed values and jumps
+  // at their top (slope 10 and more) explains any brightness change as nothing. 0: off.
+  double max_response_slope = 0.0;
+  double min_response_slope = 0.0;
+};
+
+// Why `response` with this fit's residual fails the gate, or an empty string when it passes.
+std::string estimate_rejection(const EstimateGate& gate, const ResponseModel& response, double grey_low,
+                               double grey_high, double residual_rms);
+
 struct OnlineCalibrationOptions {
   PhotometricTrackerOptions tracker;
   ExposureEstimatorOptions exposure;
@@ -109,6 +133,7 @@ struct OnlineCalibrationOptions {
   // breaks brightness constancy there and tracking with it. 0: adopt every estimate at once.
   double max_correction_step_log = 0.01;
   bool run_backend = true;            // false: front end only, with the initial model held
+  EstimateGate gate;                  // estimates that fail it are not handed on (see EstimateGate)
   // The grey range (0..255) the held initial response was fitted over (PhotometricEstimate::
   // grey_low / grey_high of the run that estimated it): the exposure estimator then trusts G
   // inside it and down-weights pixels outside (exposure_estimator.hpp). With the back end on,
@@ -139,6 +164,13 @@ public:
   const ResponseModel& correction_response() const { return correction_response_; }
   const VignetteModel& correction_vignette() const { return correction_vignette_; }
   std::int64_t keyframes_dropped() const;
+  // While held, the corrected frames keep the model they use now and do not follow new estimates
+  // (the back end and the exposure front end go on). The caller's thread. The pipeline holds it
+  // while the odometry initialises (PipelineOptions::hold_correction_frames): the initialiser
+  // compares every frame with its first, and a correction that moves meanwhile is a brightness
+  // change its affine model, held by the known exposures, cannot take up.
+  void hold_correction(bool hold) { correction_held_ = hold; }
+  bool correction_held() const { return correction_held_; }
   void reset();
   // Batch mode: waits for the back end to process everything queued, then runs a final full
   // optimisation over every stored keyframe and publishes it.
@@ -173,6 +205,7 @@ private:
   ResponseModel correction_response_;
   VignetteModel correction_vignette_;
   int correction_version_ = -1;      // increments whenever the correction model moves
+  bool correction_held_ = false;     // hold_correction()
   void follow_estimate(const PhotometricEstimate& model);
 
   // Back-end thread (or the caller's when background_thread is false).

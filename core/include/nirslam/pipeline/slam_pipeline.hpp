@@ -195,8 +195,8 @@ private:
   int light_offset_segment_ = -1;
   cv::Mat lens_vignette_;           // empty without a lens vignette file
   std::optional<BeamFit> beam_fit_;  // of the halo factor over it
-  int beam_fit_version_ = -1;
-  int frames_tracking_ = 0;  // since the odometry last (re)started tracking (hold_correction_frames)       // the model version it was fitted to
+  int beam_fit_version_ = -1;       // the model version it was fitted to
+  int frames_tracking_ = 0;         // since the odometry last (re)started tracking (hold_correction_frames)
   void fit_beam(const PhotometricEstimate& estimate);
   void estimate_light_offset(const OdometryFrame& input, const cv::Mat& irradiance, const OdometryResult& result);
 

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 #include <sys/wait.h>
+#include <unistd.h>
 
 namespace nirslam::testing {
 
@@ -28,8 +29,10 @@ inline CommandResult run_command(const std::string& command_line) {
 }
 
 // An empty folder of the system's temp folder for one test; `name` keeps tests apart.
+// Per process: two test runs on one machine (two build trees) must not share a folder.
 inline std::filesystem::path fresh_dir(const std::string& name) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("nirslam_cli_" + name);
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("nirslam_cli_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;

@@ -9,6 +9,7 @@
 
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/sim/simulator.hpp"
+#include "simulator_fixtures.hpp"
 
 namespace nirslam {
 namespace {
@@ -51,17 +52,8 @@ TEST(PhotometricGate, ResidualAboveTheLimitIsRejected) {
 }
 
 std::vector<Frame> small_room_frames(std::int64_t count) {
-  SimulatorOptions room;
-  room.scene = sim::SceneKind::Room;
-  room.width = 240;
-  room.height = 180;
-  room.supersampling = 1;
-  room.frames = count;
-  room.exposure_ms = 2.0;
-  room.powers_w = {0.0};
-  room.ambient_irradiance = 0.4;
   std::vector<Frame> frames;
-  for (Simulator simulator(room); auto f = simulator.next();) frames.push_back(f->frame);
+  for (Simulator simulator(test_sequences::small_ambient_room(count)); auto f = simulator.next();) frames.push_back(f->frame);
   return frames;
 }
 

@@ -13,6 +13,7 @@
 
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/sim/simulator.hpp"
+#include "core/simulator_fixtures.hpp"
 
 namespace nirslam {
 namespace {
@@ -24,19 +25,6 @@ const bool opencv_loops_serial = [] {
   return true;
 }();
 #endif
-
-SimulatorOptions small_room(std::int64_t frames) {
-  SimulatorOptions o;
-  o.scene = sim::SceneKind::Room;
-  o.width = 240;
-  o.height = 180;
-  o.supersampling = 1;
-  o.frames = frames;
-  o.exposure_ms = 2.0;
-  o.powers_w = {0.0};
-  o.ambient_irradiance = 0.4;
-  return o;
-}
 
 TEST(PhotometricOnlineCalibration, BackgroundBackEndPublishesWhileAReaderPolls) {
   OnlineCalibrationOptions options;
@@ -54,7 +42,7 @@ TEST(PhotometricOnlineCalibration, BackgroundBackEndPublishesWhileAReaderPolls) 
       std::this_thread::yield();
     }
   });
-  Simulator sim(small_room(60));
+  Simulator sim(test_sequences::small_ambient_room(60));
   int keyframes = 0;
   while (auto f = sim.next()) {
     const CorrectedFrame out = calibration.process(f->frame);
@@ -84,7 +72,7 @@ TEST(PhotometricOnlineCalibration, CorrectionFollowsTheEstimateInBoundedSteps) {
   options.background_thread = false;
   options.max_correction_step_log = 0.05;
   OnlinePhotometricCalibration calibration(options);
-  Simulator sim(small_room(80));
+  Simulator sim(test_sequences::small_ambient_room(80));
   std::vector<Frame> frames;
   while (auto f = sim.next()) frames.push_back(f->frame);
   // Over the grey range the fit saw (outside it G is extrapolated and the frames seldom go).
@@ -150,7 +138,7 @@ TEST(PhotometricOnlineCalibration, DegenerateFramesKeepTheLastEstimateNeverNaN) 
     EXPECT_EQ(cv::countNonZero(mask), 0);
   }
   // A static camera at a constant exposure: keyframes only by time, nothing observable.
-  Simulator sim(small_room(1));
+  Simulator sim(test_sequences::small_ambient_room(1));
   const Frame still = sim.next()->frame;
   for (int i = 0; i < 40; ++i) {
     Frame frame = still;

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include <fmt/format.h>
 #include <opencv2/core.hpp>
 
 namespace nirslam {
@@ -55,14 +56,10 @@ double milliseconds_since(std::chrono::steady_clock::time_point start) {
 
 std::string estimate_rejection(const EstimateGate& gate, const ResponseModel& response, double grey_low,
                                double grey_high, double residual_rms) {
-  char text[240];
-  if (gate.max_residual_rms > 0.0 && residual_rms > gate.max_residual_rms) {
-    std::snprintf(text, sizeof text,
-                  "residual %.2f grey levels > %.2f: the model does not fit these frames (a lamp's distance change "
-                  "read as radiance change?)",
-                  residual_rms, gate.max_residual_rms);
-    return text;
-  }
+  if (gate.max_residual_rms > 0.0 && residual_rms > gate.max_residual_rms)
+    return fmt::format("residual {:.2f} grey levels > {:.2f}: the model does not fit these frames (a lamp's distance "
+                       "change read as radiance change?)",
+                       residual_rms, gate.max_residual_rms);
   if ((gate.max_response_slope > 0.0 || gate.min_response_slope > 0.0) && grey_high > grey_low) {
     // Slopes over steps of 10 % in grey level: fine enough to see a jump, coarse enough that
     // the 8-bit quantisation of the observed range does not matter.
@@ -74,20 +71,14 @@ std::string estimate_rejection(const EstimateGate& gate, const ResponseModel& re
       if (slope > steepest) steepest = slope, steep_at = g;
       if (slope < flattest) flattest = slope, flat_at = g;
     }
-    if (gate.max_response_slope > 0.0 && steepest > gate.max_response_slope) {
-      std::snprintf(text, sizeof text,
-                    "response implausible: d log G / d log I = %.1f at grey %.0f (above %.1f) inside the observed "
-                    "range %.0f-%.0f",
-                    steepest, steep_at, gate.max_response_slope, grey_low, grey_high);
-      return text;
-    }
-    if (gate.min_response_slope > 0.0 && flattest < gate.min_response_slope) {
-      std::snprintf(text, sizeof text,
-                    "response implausible: d log G / d log I = %.2f at grey %.0f (below %.2f) inside the observed "
-                    "range %.0f-%.0f",
-                    flattest, flat_at, gate.min_response_slope, grey_low, grey_high);
-      return text;
-    }
+    if (gate.max_response_slope > 0.0 && steepest > gate.max_response_slope)
+      return fmt::format("response implausible: d log G / d log I = {:.1f} at grey {:.0f} (above {:.1f}) inside the "
+                         "observed range {:.0f}-{:.0f}",
+                         steepest, steep_at, gate.max_response_slope, grey_low, grey_high);
+    if (gate.min_response_slope > 0.0 && flattest < gate.min_response_slope)
+      return fmt::format("response implausible: d log G / d log I = {:.2f} at grey {:.0f} (below {:.2f}) inside the "
+                         "observed range {:.0f}-{:.0f}",
+                         flattest, flat_at, gate.min_response_slope, grey_low, grey_high);
   }
   return {};
 }

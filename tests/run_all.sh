@@ -25,8 +25,8 @@ packaging/check-package.sh build
 
 section "AddressSanitizer + UndefinedBehaviorSanitizer: unit tests"
 # -O1 (what the AddressSanitizer documentation recommends for usable speed): the unit tests ran
-# 190 s of wall at load 6-8 here, against about 400 s at -O0 on a quieter machine, for 12-25 % more
-# compile CPU. GCC 12 gives a false -Wmaybe-uninitialized inside std::variant at -O1
+# 60 s of wall on a quiet machine (clean `.ci/run`, 2026-12-02), about 400 s at -O0, for 12-25 %
+# more compile CPU per file. GCC 12 gives a false -Wmaybe-uninitialized inside std::variant at -O1
 # (tests/worker/test_worker.cpp), so this stage alone leaves that warning out; the Release stage
 # keeps it. -g1 (line tables, function names: what sanitizer reports print) instead of -g.
 configure build-asan -DCMAKE_BUILD_TYPE=Debug -DNIRSLAM_SANITIZE=address,undefined -DNIRSLAM_BUILD_UI=OFF \

@@ -88,7 +88,8 @@ std::optional<double> LightDistanceMap::distance_at(const Eigen::Vector2d& pixel
                                                     const std::array<const Entry*, kMaxNeighbours>& near,
                                                     std::size_t n, Eigen::Vector3d* plane_normal) const {
   const std::optional<double> median = median_distance(near, n);
-  if (!median) return median;
+  // Neither the gate nor the fit (the defaults): the median is the answer, no spread needed.
+  if (!median || (options_.max_log_spread <= 0.0 && !options_.fit_inverse_depth_plane)) return median;
   // Inliers: within the band (or 3 MADs) of the median in log distance.
   const double log_median = std::log(*median);
   std::array<float, kMaxNeighbours> deviations{};

@@ -17,6 +17,7 @@
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/sim/scene.hpp"
 #include "nirslam/sim/simulator.hpp"
+#include "response_error.hpp"
 
 namespace nirslam {
 namespace {
@@ -249,20 +250,11 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
       out.in_range_max_grey = std::max(out.in_range_max_grey, d);
     }
     if (n > 0) out.in_range_mean_grey /= n;
-    {
-      const int lo = static_cast<int>(std::ceil(out.estimate->grey_low)), hi = static_cast<int>(out.estimate->grey_high);
-      double num = 0.0, den = 0.0;  // least-squares s
-      for (int i = lo; i <= hi; ++i) {
-        num += estimated[static_cast<std::size_t>(i)] * expected[static_cast<std::size_t>(i)];
-        den += estimated[static_cast<std::size_t>(i)] * estimated[static_cast<std::size_t>(i)];
-      }
-      out.irradiance_scale = den > 0.0 ? num / den : 1.0;
-      for (int i = lo; i <= hi; ++i) {
-        const double d = std::abs(out.irradiance_scale * estimated[static_cast<std::size_t>(i)] - expected[static_cast<std::size_t>(i)]);
-        out.scale_free_mean_grey += d / std::max(hi - lo + 1, 1);
-        out.scale_free_max_grey = std::max(out.scale_free_max_grey, d);
-      }
-    }
+    const auto modulo_scale = test_photometric::response_error_modulo_scale(out.estimate->response, truth.response,
+                                                                            out.estimate->grey_low, out.estimate->grey_high);
+    out.irradiance_scale = modulo_scale.irradiance_scale;
+    out.scale_free_mean_grey = modulo_scale.mean_grey;
+    out.scale_free_max_grey = modulo_scale.max_grey;
     // Without known exposures the gamma is a normalisation (photometric_backend.hpp): the truth's
     // G^g with g matching the two curves at the gauge grey level is what the data determine.
     const double y = 128.0 / 255.0;

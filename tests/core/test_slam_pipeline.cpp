@@ -17,6 +17,7 @@
 #include "nirslam/photometric/response_model.hpp"
 #include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/sim/simulator.hpp"
+#include "response_error.hpp"
 
 namespace nirslam {
 namespace {
@@ -316,19 +317,10 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
                                          truth, sim.width, sim.height);
   run.grey_low = estimate->grey_low;
   run.grey_high = estimate->grey_high;
-  const std::vector<double> estimated = estimate->response.inverse_table(256);
-  const std::vector<double> expected = truth.response.inverse_table(256);
-  const int lo = std::clamp(static_cast<int>(std::ceil(run.grey_low)), 0, 255);
-  const int hi = std::clamp(static_cast<int>(run.grey_high), lo, 255);
-  double num = 0.0, den = 0.0;  // least-squares s
-  for (int i = lo; i <= hi; ++i) {
-    num += estimated[static_cast<std::size_t>(i)] * expected[static_cast<std::size_t>(i)];
-    den += estimated[static_cast<std::size_t>(i)] * estimated[static_cast<std::size_t>(i)];
-  }
-  run.irradiance_scale = den > 0.0 ? num / den : 1.0;
-  for (int i = lo; i <= hi; ++i)
-    run.scale_free_mean_grey += std::abs(run.irradiance_scale * estimated[static_cast<std::size_t>(i)] -
-                                         expected[static_cast<std::size_t>(i)]) / (hi - lo + 1);
+  const auto modulo_scale =
+      test_photometric::response_error_modulo_scale(estimate->response, truth.response, run.grey_low, run.grey_high);
+  run.irradiance_scale = modulo_scale.irradiance_scale;
+  run.scale_free_mean_grey = modulo_scale.mean_grey;
   return run;
 }
 

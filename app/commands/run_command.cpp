@@ -19,6 +19,7 @@
 #include "nirslam/session/metrics_csv_writer.hpp"
 #include "nirslam/session/odometry_output.hpp"
 #include "nirslam/sources/frame_limit.hpp"
+#include "nirslam/sources/read_ahead.hpp"
 #include "nirslam/worker/worker.hpp"
 
 namespace nirslam::app {
@@ -138,6 +139,8 @@ int run_headless(const RunOptions& options) {
   SourceFactory factory = source_factory_from_argument(options.source);
   if (options.max_frames > 0)
     factory = [factory, n = options.max_frames] { return limit_frames(factory(), n); };
+  // Decoding the next frames overlaps the pipeline (the worker's read time is then the wait).
+  factory = [factory] { return read_ahead(factory()); };
 
   std::error_code error;
   std::filesystem::create_directories(options.out_dir, error);

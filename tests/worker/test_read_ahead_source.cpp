@@ -1,0 +1,140 @@
+// The read-ahead source (also run under ThreadSanitizer): the consumer sees exactly the frames,
+// order and errors of the source it wraps, however fast either side is.
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <set>
+#include <stdexcept>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "nirslam/common/error.hpp"
+#include "nirslam/sources/read_ahead.hpp"
+
+namespace nirslam {
+namespace {
+
+// Frames 0..count-1 whose pixels carry their index; the ones in `failing` throw an InputError
+// naming their file instead (and the stream goes on after them, as a folder reader's does).
+class CountingSource final : public Source {
+public:
+  CountingSource(int count, std::set<int> failing, std::chrono::microseconds read_time = {})
+      : count_(count), failing_(std::move(failing)), read_time_(read_time) {
+    info_.kind = "folder";
+    info_.description = "counting";
+    info_.frame_count = static_cast<std::size_t>(count);
+  }
+  const SourceInfo& info() const override { return info_; }
+  std::optional<Frame> next() override {
+    ++calls_;
+    std::this_thread::sleep_for(read_time_);
+    if (position_ >= count_) return std::nullopt;
+    const int index = position_++;
+    if (failing_.count(index) != 0) throw InputError("frame_" + std::to_string(index) + ".png", "truncated PNG");
+    Frame frame;
+    frame.image = cv::Mat(4, 4, CV_8UC1, cv::Scalar(index % 256));
+    frame.index = index;
+    frame.timestamp_s = 0.05 * index;
+    return frame;
+  }
+  void rewind() override { position_ = 0; }
+  int calls() const { return calls_.load(); }
+
+private:
+  SourceInfo info_;
+  int count_;
+  std::set<int> failing_;
+  std::chrono::microseconds read_time_;
+  int position_ = 0;
+  std::atomic<int> calls_{0};
+};
+
+TEST(ReadAheadSource, DeliversEveryFrameInOrderThenTheEnd) {
+  auto source = read_ahead(std::make_unique<CountingSource>(40, std::set<int>{}), 3);
+  EXPECT_EQ(source->info().kind, "folder");
+  ASSERT_EQ(source->info().frame_count, std::optional<std::size_t>(40));
+  for (int i = 0; i < 40; ++i) {
+    auto frame = source->next();
+    ASSERT_TRUE(frame) << "frame " << i;
+    EXPECT_EQ(frame->index, i);
+    EXPECT_EQ(frame->image.at<std::uint8_t>(2, 2), i);
+    if (i % 7 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));  // a slow consumer now and then
+  }
+  EXPECT_FALSE(source->next());
+  EXPECT_FALSE(source->next()) << "the end stays the end";
+}
+
+TEST(ReadAheadSource, AnErrorComesAtItsPlaceAfterTheFramesReadBeforeIt) {
+  auto source = read_ahead(std::make_unique<CountingSource>(10, std::set<int>{4}), 4);
+  for (int i = 0; i < 4; ++i) {
+    auto frame = source->next();
+    ASSERT_TRUE(frame);
+    EXPECT_EQ(frame->index, i);
+  }
+  try {
+    source->next();
+    FAIL() << "frame 4 must throw";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("frame_4.png"), std::string::npos) << e.what();
+  }
+  auto after = source->next();  // as the wrapped source would go on
+  ASSERT_TRUE(after);
+  EXPECT_EQ(after->index, 5);
+}
+
+TEST(ReadAheadSource, ReadsNoFurtherAheadThanItsDepth) {
+  auto counting = std::make_unique<CountingSource>(100, std::set<int>{});
+  const CountingSource& inner = *counting;
+  auto source = read_ahead(std::move(counting), 3);
+  ASSERT_TRUE(source->next());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (inner.calls() < 4 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(inner.calls(), 4) << "the frame taken plus three ahead";
+}
+
+TEST(ReadAheadSource, RewindStartsOverWhileTheReaderIsBusy) {
+  auto source = read_ahead(std::make_unique<CountingSource>(30, std::set<int>{}, std::chrono::microseconds(200)), 4);
+  for (int i = 0; i < 7; ++i) ASSERT_TRUE(source->next());
+  source->rewind();
+  for (int i = 0; i < 30; ++i) {
+    auto frame = source->next();
+    ASSERT_TRUE(frame);
+    EXPECT_EQ(frame->index, i);
+  }
+  EXPECT_FALSE(source->next());
+}
+
+TEST(ReadAheadSource, DestroyedWithAFullQueueDoesNotHang) {
+  auto source = read_ahead(std::make_unique<CountingSource>(1000, std::set<int>{}), 2);
+  ASSERT_TRUE(source->next());
+  std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  source.reset();  // the reader waits for room; stopping must wake it
+  SUCCEED();
+}
+
+TEST(ReadAheadSource, LiveSourcesAndZeroDepthAreLeftAsTheyAre) {
+  class LiveSource final : public Source {
+  public:
+    LiveSource() { info_.live = true; }
+    const SourceInfo& info() const override { return info_; }
+    std::optional<Frame> next() override { return std::nullopt; }
+    void rewind() override {}
+
+  private:
+    SourceInfo info_;
+  };
+  auto live = std::make_unique<LiveSource>();
+  const Source* live_address = live.get();
+  EXPECT_EQ(read_ahead(std::move(live)).get(), live_address);
+  auto dataset = std::make_unique<CountingSource>(3, std::set<int>{});
+  const Source* dataset_address = dataset.get();
+  EXPECT_EQ(read_ahead(std::move(dataset), 0).get(), dataset_address);
+  EXPECT_THROW(read_ahead(nullptr), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace nirslam

@@ -23,6 +23,7 @@ SessionSource::SessionSource(const fs::path& folder) : folder_(folder) {
   info_.kind = "session";
   info_.description = folder_.string();
   info_.frame_count = journal_.size();
+  info_.seekable = true;
   info_.nominal_fps = metadata_.nominal_fps;
   if (info_.nominal_fps <= 0.0 && journal_.size() > 1) {
     const double span = journal_.back().timestamp_s - journal_.front().timestamp_s;

@@ -83,6 +83,7 @@ EurocReader::EurocReader(const fs::path& path, EurocOptions options)
   info_.description = camera_folder_.string();
   info_.frame_count = files_.size();
   info_.live = false;
+  info_.seekable = true;
   info_.nominal_fps = sensor_ && sensor_->rate_hz ? *sensor_->rate_hz
                                                   : frame_rate_from_timestamps(seconds);
 }

@@ -24,6 +24,11 @@ public:
     inner_->rewind();
     delivered_ = 0;
   }
+  void seek(std::size_t position) override {
+    require_frame_position(position, *info_.frame_count);
+    inner_->seek(position);
+    delivered_ = static_cast<std::int64_t>(position);
+  }
   std::int64_t frames_dropped() const override { return inner_->frames_dropped(); }
   std::shared_ptr<const CameraModel> camera() const override { return inner_->camera(); }
 

@@ -108,6 +108,7 @@ ImageFolderReader::ImageFolderReader(const fs::path& folder, ImageFolderOptions 
   info_.description = folder.string();
   info_.frame_count = files_.size();
   info_.live = false;
+  info_.seekable = true;
   info_.nominal_fps = has_times_ ? frame_rate_from_timestamps(timestamps_s_) : options.nominal_fps;
 }
 

@@ -32,6 +32,7 @@ public:
     if (queue_.empty()) return std::nullopt;  // the stream ended and every frame was taken
     Item item = std::move(queue_.front());
     queue_.pop_front();
+    ++position_;
     lock.unlock();
     emptied_.notify_one();
     if (item.error) std::rethrow_exception(item.error);
@@ -39,12 +40,21 @@ public:
   }
 
   void rewind() override {
-    stop_reader();
-    queue_.clear();
-    ended_ = false;
-    stopping_ = false;
-    inner_->rewind();
-    start_reader();
+    restart_reader([this] { inner_->rewind(); });
+    position_ = 0;
+  }
+
+  void seek(std::size_t position) override {
+    if (!info_.seekable) return Source::seek(position);
+    if (info_.frame_count) require_frame_position(position, *info_.frame_count);
+    try {
+      restart_reader([this, position] { inner_->seek(position); });
+    } catch (...) {
+      // The frames read ahead are gone: the source goes back to where the consumer was.
+      restart_reader([this] { inner_->seek(position_); });
+      throw;
+    }
+    position_ = position;
   }
 
 private:
@@ -52,6 +62,23 @@ private:
     std::optional<Frame> frame;
     std::exception_ptr error;
   };
+
+  // Stops the reader, drops what it read ahead, moves the source and reads on from there.
+  template <typename MoveSource>
+  void restart_reader(MoveSource&& move_source) {
+    stop_reader();
+    queue_.clear();
+    ended_ = false;
+    stopping_ = false;
+    std::exception_ptr error;
+    try {
+      move_source();
+    } catch (...) {
+      error = std::current_exception();
+    }
+    start_reader();
+    if (error) std::rethrow_exception(error);
+  }
 
   void start_reader() {
     reader_ = std::thread([this] { read_loop(); });
@@ -106,6 +133,7 @@ private:
   std::deque<Item> queue_;
   bool ended_ = false;
   bool stopping_ = false;
+  std::size_t position_ = 0;  // items the consumer took since the last rewind or seek (consumer only)
   std::thread reader_;
 };
 

@@ -190,6 +190,7 @@ TumMonoVoReader::TumMonoVoReader(const fs::path& folder) : folder_(folder) {
   info_.description = folder.string();
   info_.frame_count = image_count;
   info_.live = false;
+  info_.seekable = true;
   info_.nominal_fps = frame_rate_from_timestamps(timestamps);
 }
 

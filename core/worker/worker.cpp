@@ -226,6 +226,8 @@ void Worker::apply(Command& command) {
         } else if constexpr (std::is_same_v<C, command::StopRecording>) {
           if (!recorder_ || recorder_finished_) return publish_recording_status("no recording is running");
           publish_recording_status(finish_recording("stopped by the operator"));
+        } else if constexpr (std::is_same_v<C, command::Seek>) {
+          seek_source(c.position);
         } else if constexpr (std::is_same_v<C, command::SetPacing>) {
           options_.pacing = c.pacing;
           pacing_origin_.reset();
@@ -497,6 +499,36 @@ void Worker::rewind_source() {
   } catch (const std::exception& e) {
     publish_state(WorkerState::Failed, e.what());
   }
+}
+
+void Worker::seek_source(std::size_t position) {
+  const auto refuse = [this](std::string message) {
+    auto next = copy_of_latest();
+    next->message = std::move(message);
+    publish(std::move(next));
+  };
+  if (!source_) return refuse("no source selected");
+  if (!source_->info().seekable) return refuse(fmt::format("{}: this source cannot jump to a frame", source_->info().description));
+  if (recorder_ && !recorder_finished_) return refuse("cannot jump while recording: stop the recording first");
+  try {
+    source_->seek(position);
+  } catch (const std::exception& e) {
+    return refuse(e.what());
+  }
+  pending_frame_.reset();
+  pacing_origin_.reset();
+  restart_pipeline();
+  steps_pending_ = 0;
+  if (state_ != WorkerState::Running) {
+    state_ = WorkerState::Paused;
+    steps_pending_ = 1;  // show the frame jumped to
+  }
+  auto next = copy_of_latest();
+  next->state = state_;
+  set_pipeline_views(*next);
+  next->corrected_image = cv::Mat();
+  next->message = fmt::format("jumped to frame {}; calibration and odometry start again there", position + 1);
+  publish(std::move(next));
 }
 
 void Worker::restart_pipeline() {

@@ -202,6 +202,21 @@ TEST_F(TumMonoVo, ReadsImagesZip) {
   EXPECT_FALSE(reader.next().has_value());
   reader.rewind();
   EXPECT_TRUE(same_pixels(reader.next()->image, images[0]));
+  // Jumps (the GUI's seek bar): a member read out of order, and a refused jump keeps the place.
+  EXPECT_TRUE(reader.info().seekable);
+  reader.seek(4);
+  const std::optional<Frame> fifth = reader.next();
+  ASSERT_TRUE(fifth.has_value());
+  EXPECT_EQ(fifth->index, 4);
+  EXPECT_TRUE(same_pixels(fifth->image, images[4]));
+  EXPECT_DOUBLE_EQ(*fifth->exposure_ms, 9.0);
+  try {
+    reader.seek(6);
+    ADD_FAILURE() << "frame 6 of 6 is past the end";
+  } catch (const std::out_of_range& e) {
+    EXPECT_CONTAINS(std::string(e.what()), "cannot seek to frame 6, the sequence has 6 frames");
+  }
+  EXPECT_EQ(reader.next()->index, 5);
 }
 
 TEST_F(TumMonoVo, CorruptZipMemberNamesTheMember) {
@@ -406,6 +421,13 @@ TEST(Euroc, ReadsTheRealMicroSequence) {
   }
   EXPECT_EQ(count, 95u);
   EXPECT_NEAR(seconds_from_nanoseconds(reader.timestamps_ns().front()), 1403715273.262143, 1e-6);
+  EXPECT_TRUE(reader.info().seekable);
+  reader.seek(94);
+  const std::optional<Frame> last = reader.next();
+  ASSERT_TRUE(last.has_value());
+  EXPECT_EQ(last->index, 94);
+  EXPECT_EQ(last->name, rows[94].second);
+  EXPECT_FALSE(reader.next().has_value());
 }
 
 TEST(Euroc, AcceptsRootMav0OrCameraFolder) {
@@ -530,6 +552,14 @@ TEST_F(ImageFolder, NaturalOrderAndNominalRate) {
       EXPECT_FALSE(frame->exposure_ms.has_value());
     }
     EXPECT_FALSE(reader.next().has_value());
+    EXPECT_TRUE(reader.info().seekable);
+    reader.seek(2);
+    const std::optional<Frame> third = reader.next();
+    ASSERT_TRUE(third.has_value());
+    EXPECT_EQ(third->name, "img10.png");
+    EXPECT_EQ(third->index, 2);
+    EXPECT_DOUBLE_EQ(third->timestamp_s, 0.1);
+    EXPECT_THROW(reader.seek(4), std::out_of_range);
   }
   ImageFolderOptions options;
   options.nominal_fps = 10.0;

@@ -25,6 +25,7 @@ public:
     info_.kind = "folder";
     info_.description = "counting";
     info_.frame_count = static_cast<std::size_t>(count);
+    info_.seekable = true;
   }
   const SourceInfo& info() const override { return info_; }
   std::optional<Frame> next() override {
@@ -40,6 +41,10 @@ public:
     return frame;
   }
   void rewind() override { position_ = 0; }
+  void seek(std::size_t position) override {
+    require_frame_position(position, static_cast<std::size_t>(count_));
+    position_ = static_cast<int>(position);
+  }
   int calls() const { return calls_.load(); }
 
 private:
@@ -106,6 +111,27 @@ TEST(ReadAheadSource, RewindStartsOverWhileTheReaderIsBusy) {
     EXPECT_EQ(frame->index, i);
   }
   EXPECT_FALSE(source->next());
+}
+
+TEST(ReadAheadSource, SeekDropsWhatWasReadAheadAndGoesOnFromThere) {
+  auto source = read_ahead(std::make_unique<CountingSource>(50, std::set<int>{}), 4);
+  ASSERT_TRUE(source->info().seekable);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(source->next());
+  source->seek(30);
+  for (int i = 30; i < 33; ++i) {
+    auto frame = source->next();
+    ASSERT_TRUE(frame);
+    EXPECT_EQ(frame->index, i);
+  }
+  // Past the end: refused, and the stream goes on where it was.
+  EXPECT_THROW(source->seek(50), std::out_of_range);
+  auto frame = source->next();
+  ASSERT_TRUE(frame);
+  EXPECT_EQ(frame->index, 33);
+  source->seek(2);
+  frame = source->next();
+  ASSERT_TRUE(frame);
+  EXPECT_EQ(frame->index, 2);
 }
 
 TEST(ReadAheadSource, DestroyedWithAFullQueueDoesNotHang) {

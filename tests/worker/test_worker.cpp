@@ -42,11 +42,12 @@ WorkerOptions quality_only(WorkerOptions options = {}) {
 // `bad_index` (if any) throws as a corrupt file would.
 class CountingSource final : public Source {
 public:
-  CountingSource(int count, double period_s = 0.05, int bad_index = -1, int bad_type = -1)
+  CountingSource(int count, double period_s = 0.05, int bad_index = -1, int bad_type = -1, bool seekable = false)
       : count_(count), period_s_(period_s), bad_index_(bad_index), bad_type_(bad_type) {
     info_.kind = "test";
     info_.description = "counting source";
     info_.frame_count = static_cast<std::size_t>(count);
+    info_.seekable = seekable;
   }
   const SourceInfo& info() const override { return info_; }
   std::optional<Frame> next() override {
@@ -61,6 +62,11 @@ public:
     return frame;
   }
   void rewind() override { index_ = 0; }
+  void seek(std::size_t position) override {
+    if (!info_.seekable) return Source::seek(position);
+    require_frame_position(position, static_cast<std::size_t>(count_));
+    index_ = static_cast<int>(position);
+  }
 
 private:
   SourceInfo info_;
@@ -128,6 +134,65 @@ TEST(Worker, StopRewindsAndStartBeginsAgain) {
   const auto s = worker.wait_for([](const Snapshot& x) { return x.frames_processed == 6; }, 5s);
   ASSERT_TRUE(s->frame);
   EXPECT_EQ(s->frame->index, 0);
+}
+
+SourceFactory seekable_counting(int count) {
+  return [=] { return std::make_unique<CountingSource>(count, 0.05, -1, -1, true); };
+}
+
+TEST(Worker, SeekPausesOnTheFrameJumpedToAndStartGoesOnFromThere) {
+  Worker worker(quality_only());
+  worker.post(command::SetSource{seekable_counting(100)});
+  worker.post(command::Seek{40});
+  auto s = worker.wait_for([](const Snapshot& x) { return x.frame && x.frame->index == 40; }, 5s);
+  ASSERT_TRUE(s->frame) << s->message;
+  EXPECT_EQ(s->frame->index, 40);
+  EXPECT_EQ(s->state, WorkerState::Paused);
+  EXPECT_EQ(s->frames_processed, 1);
+  EXPECT_TRUE(s->source.seekable);
+  worker.post(command::Start{});
+  s = worker.wait_for(settled, 5s);
+  ASSERT_EQ(s->state, WorkerState::Finished) << s->message;
+  EXPECT_EQ(s->frames_processed, 60) << "frame 40 and the 59 after it";
+  EXPECT_EQ(s->frame->index, 99);
+  // Back after the end: the finished run is not restarted from the first frame.
+  worker.post(command::Seek{10});
+  s = worker.wait_for([](const Snapshot& x) { return x.frame && x.frame->index == 10; }, 5s);
+  EXPECT_EQ(s->frame->index, 10);
+  EXPECT_EQ(s->state, WorkerState::Paused);
+}
+
+TEST(Worker, SeekWhileRunningGoesOnFromTheNewPosition) {
+  Worker worker(quality_only({.pacing = Pacing::RecordedSpeed}));
+  worker.post(command::SetSource{seekable_counting(400)});  // 20 s of recording at 0.05 s a frame
+  worker.post(command::Start{});
+  ASSERT_TRUE(worker.wait_for([](const Snapshot& x) { return x.frames_processed >= 2; }, 5s)->frame);
+  worker.post(command::Seek{390});
+  const auto s = worker.wait_for(settled, 10s);
+  ASSERT_EQ(s->state, WorkerState::Finished) << s->message;
+  EXPECT_EQ(s->frame->index, 399);
+  EXPECT_LT(s->frames_processed, 40) << "the frames between were skipped";
+}
+
+TEST(Worker, SeekIsRefusedWithAReasonWhereItCannotBeDone) {
+  Worker worker(quality_only());
+  worker.post(command::Seek{3});
+  EXPECT_NE(worker.wait_for([](const Snapshot& x) { return !x.message.empty(); }, 5s)->message.find("no source"),
+            std::string::npos);
+
+  worker.post(command::SetSource{counting(20)});  // not seekable
+  worker.post(command::Seek{3});
+  auto s = worker.wait_for([](const Snapshot& x) { return x.message.find("cannot jump") != std::string::npos; }, 5s);
+  EXPECT_NE(s->message.find("counting source: this source cannot jump"), std::string::npos) << s->message;
+  EXPECT_FALSE(s->source.seekable);
+  EXPECT_EQ(s->state, WorkerState::Idle);
+
+  worker.post(command::SetSource{seekable_counting(20)});
+  worker.post(command::Seek{20});
+  s = worker.wait_for([](const Snapshot& x) { return x.message.find("cannot seek") != std::string::npos; }, 5s);
+  EXPECT_NE(s->message.find("cannot seek to frame 20, the sequence has 20 frames"), std::string::npos) << s->message;
+  EXPECT_EQ(s->state, WorkerState::Idle);
+  EXPECT_FALSE(s->frame);
 }
 
 TEST(Worker, CorruptFrameFailsWithTheFileNamed) {

@@ -113,6 +113,37 @@ TEST(WorkerRecording, StopRecordingMidRunKeepsProcessing) {
   EXPECT_EQ(refused->message, "no recording is running");
 }
 
+// A recorded session replays seekable; while a new recording runs a jump is refused (the new
+// session would get a gap), after it the jump is made.
+TEST(WorkerRecording, ARecordedSessionSeeksButNotWhileRecording) {
+  const fs::path base = fresh_folder("seek");
+  {
+    Worker recorder(recording_options());
+    recorder.post(command::SetSource{small_demo(12)});
+    recorder.post(command::StartRecording{base / "first", ""});
+    recorder.post(command::Start{});
+    ASSERT_EQ(recorder.wait_for(settled, 30s)->state, WorkerState::Finished);
+  }
+  Worker worker(recording_options());
+  worker.post(command::SetSource{[base] { return open_session_source(base / "first"); }});
+  worker.post(command::StartRecording{base / "second", ""});
+  worker.post(command::Step{});
+  ASSERT_TRUE(worker.wait_for([](const Snapshot& s) { return s.frames_processed == 1; }, 10s)->frame);
+  worker.post(command::Seek{8});
+  const auto refused = worker.wait_for([](const Snapshot& s) { return s.message.find("while recording") != std::string::npos; }, 10s);
+  EXPECT_EQ(refused->message, "cannot jump while recording: stop the recording first");
+  EXPECT_TRUE(refused->source.seekable);
+  EXPECT_EQ(refused->frame->index, 0);
+
+  worker.post(command::StopRecording{});
+  worker.post(command::Seek{8});
+  const auto moved = worker.wait_for([](const Snapshot& s) { return s.frame && s.frame->index == 8; }, 10s);
+  ASSERT_TRUE(moved->frame);
+  EXPECT_EQ(moved->frame->index, 8);
+  EXPECT_EQ(moved->recording.frames_written, 1) << "nothing recorded after the recording stopped";
+  EXPECT_EQ(SessionSource(base / "second").journal().size(), 1u);
+}
+
 TEST(WorkerRecording, AFolderThatIsNotEmptyIsRefusedWithAMessage) {
   const fs::path folder = fresh_folder("refused");
   std::ofstream(folder / "notes.txt") << "not a session";

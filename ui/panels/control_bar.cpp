@@ -131,8 +131,12 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
   // how many frames a live stream delivered.
   const std::size_t total = snapshot.source.frame_count.value_or(0);
   const std::int64_t position = snapshot.frame ? snapshot.frame->index + 1 : 0;
-  const std::string progress = total > 0 ? fmt::format("{} / {}", position, total)
-                                         : fmt::format("{} frames", snapshot.frames_processed);
+  const bool jumps_refused = recording.state == RecordingStatus::State::Recording;  // a gap in the session
+  const bool seekable = can_post && total > 0 && snapshot.source.seekable;
+  if (!seekable) seek_target_.reset();
+  const std::string progress = seek_target_ ? fmt::format("-> {} / {}", *seek_target_ + 1, total)
+                               : total > 0  ? fmt::format("{} / {}", position, total)
+                                            : fmt::format("{} frames", snapshot.frames_processed);
   const float progress_text_width = ImGui::CalcTextSize("000000 / 000000").x;
   const float bar_width = total > 0 ? 160.0f : 0.0f;
   const float right_width = progress_text_width + (bar_width > 0.0f ? bar_width + 10.0f : 0.0f);
@@ -155,16 +159,42 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
   if (ImGui::IsItemHovered())
     ImGui::SetTooltip("Position of the current frame in the sequence; %lld frames processed in this run",
                       static_cast<long long>(snapshot.frames_processed));
+  progress_rect_ = {};
   if (bar_width > 0.0f) {
     ImGui::SameLine(0.0f, 10.0f);
-    const float fraction =
-        static_cast<float>(std::clamp(static_cast<double>(position) / static_cast<double>(total), 0.0, 1.0));
     const ImVec2 bar = ImGui::GetCursorScreenPos();
-    const float h = std::round(ImGui::GetFrameHeight() * 0.4f);
-    const float y = std::round(bar.y + 0.5f * (ImGui::GetFrameHeight() - h));
-    ImGui::Dummy(ImVec2(bar_width, ImGui::GetFrameHeight()));
+    const ImVec2 size(bar_width, ImGui::GetFrameHeight());
+    progress_rect_ = {bar, ImVec2(bar.x + size.x, bar.y + size.y)};
+    // Frame i (0-based) sits at fraction (i + 1) / total, as the readout counts from 1.
+    const auto frame_under = [&](float x) {
+      const double f = std::clamp(static_cast<double>(x - bar.x) / bar_width, 0.0, 1.0);
+      return std::min(total - 1, static_cast<std::size_t>(std::max(0.0, std::ceil(f * static_cast<double>(total)) - 1.0)));
+    };
+    if (seekable && !jumps_refused) {
+      ImGui::InvisibleButton("##seek", size);
+      if (ImGui::IsItemActive()) seek_target_ = frame_under(ImGui::GetIO().MousePos.x);
+      if (ImGui::IsItemDeactivated() && seek_target_) {
+        post(command::Seek{*seek_target_});
+        seek_target_.reset();
+      }
+      if (ImGui::IsItemHovered() && !ImGui::IsItemActive())
+        ImGui::SetTooltip("Frame %zu: click or drag to jump there.\nThe calibration and the odometry start again at that frame.",
+                          frame_under(ImGui::GetIO().MousePos.x) + 1);
+    } else {
+      seek_target_.reset();
+      ImGui::Dummy(size);
+      if (seekable && ImGui::IsItemHovered()) ImGui::SetTooltip("Stop the recording to jump to another frame");
+    }
+    const double shown = seek_target_ ? static_cast<double>(*seek_target_ + 1) : static_cast<double>(position);
+    const float fraction = static_cast<float>(std::clamp(shown / static_cast<double>(total), 0.0, 1.0));
+    const float h = std::round(size.y * 0.4f);
+    const float y = std::round(bar.y + 0.5f * (size.y - h));
     draw->AddRectFilled(ImVec2(bar.x, y), ImVec2(bar.x + bar_width, y + h), colours::frame_bg, 2.0f);
     draw->AddRectFilled(ImVec2(bar.x, y), ImVec2(bar.x + bar_width * fraction, y + h), colours::accent, 2.0f);
+    if (seekable && !jumps_refused) {  // a knob says the bar can be dragged
+      const float radius = std::round(size.y * 0.28f);
+      draw->AddCircleFilled(ImVec2(bar.x + bar_width * fraction, bar.y + 0.5f * size.y), radius, colours::text);
+    }
   }
 }
 

@@ -28,7 +28,7 @@ public:
   std::shared_ptr<const CameraModel> camera() const override { return camera_; }
 
   // The next next() returns the frame at this position; throws std::out_of_range past the end.
-  void seek(std::size_t position);
+  void seek(std::size_t position) override;
   std::size_t position() const { return next_; }
 
   const SessionMetadata& metadata() const { return metadata_; }

@@ -36,6 +36,10 @@ public:
   const SourceInfo& info() const override { return info_; }
   std::optional<Frame> next() override;
   void rewind() override { next_index_ = 0; }
+  void seek(std::size_t position) override {
+    require_frame_position(position, files_.size());
+    next_index_ = position;
+  }
   std::shared_ptr<const CameraModel> camera() const override;
 
   const std::optional<DsoCameraCalibration>& calibration() const { return calibration_; }

@@ -28,6 +28,7 @@ struct SourceInfo {
   bool live = false;        // a live source keeps producing frames whether or not they are consumed
   double nominal_fps = 0.0; // recorded or device rate, 0 when unknown
   std::string scene_type;   // "room", "outdoor", "parking", "tunnel" when the source knows it
+  bool seekable = false;    // seek() jumps to any frame (datasets and recorded sessions)
 };
 
 // A stream of frames. Datasets, cameras, recorded sessions and the simulator all implement it.
@@ -48,6 +49,11 @@ public:
   // Back to the first frame. Live sources restart streaming.
   virtual void rewind() = 0;
 
+  // The next next() returns the frame at `position` (0-based, as Frame::index). Throws
+  // std::out_of_range naming the source past its last frame, and std::logic_error for a source
+  // that cannot seek (info().seekable is false: live cameras, the simulator).
+  virtual void seek(std::size_t position);
+
   // Frames the source itself had to discard because its consumer lagged (live sources drop the
   // oldest queued frame rather than block); 0 for datasets, which are read frame by frame.
   virtual std::int64_t frames_dropped() const { return 0; }
@@ -62,6 +68,11 @@ public:
   virtual std::shared_ptr<IlluminatorController> illuminator() const { return nullptr; }
   // The true response and vignette, when the source knows them (for overlays and evaluation).
   virtual std::optional<PhotometricTruth> photometric_truth() const { return std::nullopt; }
+
+protected:
+  // For seek(): throws std::out_of_range naming the source when `position` is not below its
+  // frame count.
+  void require_frame_position(std::size_t position, std::size_t frame_count) const;
 };
 
 }  // namespace nirslam

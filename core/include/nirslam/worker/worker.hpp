@@ -71,12 +71,18 @@ struct StartRecording {
 // session, then the final session.json. Also happens at the end of the source, on Stop, Reset and
 // SetSource, and when the worker closes.
 struct StopRecording {};
+// Jumps to frame `position` of a seekable source (SourceInfo::seekable: datasets, recorded
+// sessions). The calibration and the odometry start again there, as on a new sequence: the frames
+// before the jump are not the ones before it in time. When not running, the worker pauses on that
+// frame (it is processed, so the feed shows it). Refused with a message for a source that cannot
+// seek, a position past the end, and while a recording runs (the session would get a gap).
+struct Seek { std::size_t position; };
 }  // namespace command
 
 using Command = std::variant<command::Start, command::Pause, command::Step, command::Stop,
                              command::Reset, command::SetSource, command::SetIlluminatorPower,
                              command::SetPacing, command::Sweep, command::SetPipelineMode,
-                             command::StartRecording, command::StopRecording>;
+                             command::StartRecording, command::StopRecording, command::Seek>;
 
 // Owns a source and the pipeline in its own thread. The UI (or a headless writer) posts commands
 // and reads the latest immutable snapshot; neither call waits for frame processing.
@@ -115,6 +121,7 @@ private:
   void apply(Command& command);
   void process_one_frame();
   void rewind_source();
+  void seek_source(std::size_t position);
   // A fresh pipeline for the current source (its camera and ground truth) and options_.pipeline.
   void restart_pipeline();
   void set_pipeline_views(Snapshot& snapshot);

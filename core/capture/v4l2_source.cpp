@@ -174,6 +174,7 @@ public:
           hub_->update([&](CameraState& s) {
             s.message = "stream ended: " + spec_.device + " was unplugged after " + std::to_string(s.frames_captured) +
                         " frames; plug it back in and press Start to resume";
+            end_reason_ = s.message;
           });
           return std::nullopt;
         }
@@ -196,6 +197,7 @@ public:
       const std::lock_guard lock(mutex_);
       queue_.clear();
       ended_ = false;
+      end_reason_.clear();
       failure_.clear();
       unplugged_at_.reset();
     }
@@ -215,6 +217,11 @@ public:
     describe();
     stop_requested_ = false;
     thread_ = std::thread([this] { capture_loop(); });
+  }
+
+  std::string end_reason() const override {
+    const std::lock_guard lock(mutex_);
+    return end_reason_;
   }
 
   std::int64_t frames_dropped() const override {
@@ -529,9 +536,10 @@ private:
 
   std::thread thread_;
   std::atomic<bool> stop_requested_{false};
-  std::mutex mutex_;  // guards the queue and the stream's end
+  mutable std::mutex mutex_;  // guards the queue and the stream's end
   std::condition_variable frame_ready_;
   std::deque<QueuedFrame> queue_;
+  std::string end_reason_;  // why the stream ended, when a camera went away (guarded by mutex_)
   std::optional<Clock::time_point> unplugged_at_;
   bool ended_ = false;
   std::string failure_;

@@ -29,6 +29,7 @@ public:
     inner_->seek(position);
     delivered_ = static_cast<std::int64_t>(position);
   }
+  std::string end_reason() const override { return delivered_ >= max_frames_ ? std::string() : inner_->end_reason(); }
   std::int64_t frames_dropped() const override { return inner_->frames_dropped(); }
   std::shared_ptr<const CameraModel> camera() const override { return inner_->camera(); }
 

@@ -25,6 +25,10 @@ public:
   const SourceInfo& info() const override { return info_; }
   std::shared_ptr<const CameraModel> camera() const override { return camera_; }
   std::optional<PhotometricTruth> photometric_truth() const override { return truth_; }
+  std::string end_reason() const override {
+    const std::lock_guard lock(mutex_);
+    return end_reason_;
+  }
 
   std::optional<Frame> next() override {
     std::unique_lock lock(mutex_);
@@ -69,6 +73,7 @@ private:
     stop_reader();
     queue_.clear();
     ended_ = false;
+    end_reason_.clear();
     stopping_ = false;
     std::exception_ptr error;
     try {
@@ -108,10 +113,12 @@ private:
         item.error = std::current_exception();
       }
       const bool end = !item.frame && !item.error;
+      std::string end_reason = end ? inner_->end_reason() : std::string();
       {
         const std::lock_guard lock(mutex_);
         if (end) {
           ended_ = true;
+          end_reason_ = std::move(end_reason);
         } else {
           queue_.push_back(std::move(item));
         }
@@ -127,11 +134,12 @@ private:
   const std::shared_ptr<const CameraModel> camera_;
   const std::optional<PhotometricTruth> truth_;
 
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::condition_variable filled_;   // a frame, an error or the end was queued
   std::condition_variable emptied_;  // room in the queue, or stopping
   std::deque<Item> queue_;
   bool ended_ = false;
+  std::string end_reason_;  // the source's, when it ended
   bool stopping_ = false;
   std::size_t position_ = 0;  // items the consumer took since the last rewind or seek (consumer only)
   std::thread reader_;

@@ -306,7 +306,9 @@ void Worker::process_one_frame() {
       rewind_source();
       return;
     }
-    std::string message = "end of sequence";
+    // A camera that went away says so (and how to resume); a dataset simply ended.
+    std::string message = source_->end_reason();
+    if (message.empty()) message = "end of sequence";
     if (pipeline_) {
       try {
         pipeline_->finish();

@@ -92,6 +92,7 @@ TEST(V4l2SourceThreads, WorkerRunsALiveCameraWhileTheGuiMovesItsControls) {
   EXPECT_EQ(last->frames_dropped, state.frames_dropped_by_driver + state.frames_dropped_by_queue);
   EXPECT_EQ(state.connection, CameraConnection::Unplugged);
   EXPECT_NE(state.message.find("unplugged after 24 frames"), std::string::npos) << state.message;
+  EXPECT_EQ(last->message, state.message) << "the worker says why the stream ended, not just that it did";
   ASSERT_TRUE(last->frame.has_value());
   ASSERT_TRUE(last->frame->exposure_ms.has_value());
   EXPECT_GE(*last->frame->exposure_ms, 1.0);

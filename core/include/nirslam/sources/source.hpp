@@ -54,6 +54,10 @@ public:
   // that cannot seek (info().seekable is false: live cameras, the simulator).
   virtual void seek(std::size_t position);
 
+  // Why next() returned the end when it was not the end of a recording (a camera unplugged and not
+  // back in time): the worker reports it instead of "end of sequence". Empty for datasets.
+  virtual std::string end_reason() const { return {}; }
+
   // Frames the source itself had to discard because its consumer lagged (live sources drop the
   // oldest queued frame rather than block); 0 for datasets, which are read frame by frame.
   virtual std::int64_t frames_dropped() const { return 0; }

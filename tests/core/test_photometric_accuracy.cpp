@@ -38,6 +38,10 @@ struct AccuracyRun {
   double scale_free_mean_grey = 0.0;
   double scale_free_max_grey = 0.0;
   double irradiance_scale = 1.0;
+  // Frames of the exposure pass whose estimate restarted the chain (with known exposures at the
+  // reported value, so such a frame's error is 0 by construction) or kept the last one.
+  int restarted_frames = 0;
+  int kept_frames = 0;
   std::shared_ptr<const PhotometricEstimate> estimate;
 };
 
@@ -171,6 +175,8 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   // Fall-off of the exposure estimator's trust outside the fitted grey range (exposure_estimator.hpp);
   // 1e9 trusts every grey level (as before the weighting).
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_TRUST_WIDTH")) options.exposure.trust_width_grey = std::atof(w);
+  // The exposure estimator's patches follow the surface's deformation (exposure_estimator.hpp; off by default).
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_FOLLOW_DEFORMATION") != nullptr) options.exposure.follow_deformation = true;
   if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
     options.backend.initial_response = sim_options.response;
     options.backend.initial_vignette = sim_options.vignette;
@@ -233,10 +239,19 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
     }
     std::printf("\n");
     const std::vector<double> ge = out.estimate->response.inverse_table(256), gt = truth.response.inverse_table(256);
+    std::printf("V_est / V_true (over r = 0):");
+    for (double r = 0.0; r <= 1.0; r += 0.1)
+      std::printf(" %.1f:%.3f", r, (out.estimate->vignette(r) / truth.vignette(r)) / (out.estimate->vignette(0.0) / truth.vignette(0.0)));
+    std::printf("\n");
     std::printf("G_est / G_true at grey 8, 16, .. 248 (over its value at 96):");
     for (int i = 8; i < 256; i += 8)
       std::printf(" %d:%.3f", i, (ge[static_cast<std::size_t>(i)] / gt[static_cast<std::size_t>(i)]) / (ge[96] / gt[96]));
     std::printf("\n");
+  }
+  for (const ExposureSample& s : exposures.exposure_history()) {
+    out.restarted_frames += s.status == ExposureStatus::Restarted;
+    out.kept_frames += s.status != ExposureStatus::Restarted && s.status != ExposureStatus::Estimated &&
+                       s.status != ExposureStatus::FirstFrame;
   }
   out.errors = compare_with_ground_truth(out.estimate->response, out.estimate->vignette, exposures.exposure_history(),
                                          truth, sim_options.width, sim_options.height);
@@ -275,8 +290,9 @@ void print(const char* label, const AccuracyRun& r) {
               r.estimate->grey_high, r.in_range_mean_grey, r.in_range_max_grey, r.errors.vignette_mean,
               r.errors.vignette_max, r.errors.exposure_mean_ms, r.errors.exposure_max_ms,
               100.0 * r.errors.exposure_median_relative, r.estimate->status.c_str());
-  std::printf("%-16s observed range modulo the irradiance scale (s = %.3f): %5.2f / %6.2f gl\n", label, r.irradiance_scale,
-              r.scale_free_mean_grey, r.scale_free_max_grey);
+  std::printf("%-16s observed range modulo the irradiance scale (s = %.3f): %5.2f / %6.2f gl; exposure pass: %d frames "
+              "restarted, %d kept\n", label, r.irradiance_scale, r.scale_free_mean_grey, r.scale_free_max_grey,
+              r.restarted_frames, r.kept_frames);
   if (r.estimate->ambiguity == AmbiguityResolution::Normalisation)
     std::printf("%-16s response modulo gamma %5.2f / %6.2f gl (%s)\n", label, r.gamma_free_mean_grey,
                 r.gamma_free_max_grey, r.estimate->ambiguity_detail.c_str());

@@ -12,53 +12,28 @@
 
 #include "nirslam/common/error.hpp"
 #include "nirslam/sources/read_ahead.hpp"
+#include "counting_source.hpp"
 
 namespace nirslam {
 namespace {
 
-// Frames 0..count-1 whose pixels carry their index; the ones in `failing` throw an InputError
-// naming their file instead (and the stream goes on after them, as a folder reader's does).
-class CountingSource final : public Source {
-public:
-  CountingSource(int count, std::set<int> failing, std::chrono::microseconds read_time = {})
-      : count_(count), failing_(std::move(failing)), read_time_(read_time) {
-    info_.kind = "folder";
-    info_.description = "counting";
-    info_.frame_count = static_cast<std::size_t>(count);
-    info_.seekable = true;
-  }
-  const SourceInfo& info() const override { return info_; }
-  std::optional<Frame> next() override {
-    ++calls_;
-    std::this_thread::sleep_for(read_time_);
-    if (position_ >= count_) return std::nullopt;
-    const int index = position_++;
-    if (failing_.count(index) != 0) throw InputError("frame_" + std::to_string(index) + ".png", "truncated PNG");
-    Frame frame;
-    frame.image = cv::Mat(4, 4, CV_8UC1, cv::Scalar(index % 256));
-    frame.index = index;
-    frame.timestamp_s = 0.05 * index;
-    return frame;
-  }
-  void rewind() override { position_ = 0; }
-  void seek(std::size_t position) override {
-    require_frame_position(position, static_cast<std::size_t>(count_));
-    position_ = static_cast<int>(position);
-  }
-  int calls() const { return calls_.load(); }
+using testing::CountingOptions;
+using testing::CountingSource;
 
-private:
-  SourceInfo info_;
-  int count_;
-  std::set<int> failing_;
-  std::chrono::microseconds read_time_;
-  int position_ = 0;
-  std::atomic<int> calls_{0};
-};
+// A seekable counting source whose frames in `corrupt` throw (and the stream goes on after them,
+// as a folder reader's does).
+std::unique_ptr<CountingSource> counting(int count, std::set<int> corrupt = {}, std::chrono::microseconds read_time = {}) {
+  CountingOptions options;
+  options.count = count;
+  options.corrupt = std::move(corrupt);
+  options.read_time = read_time;
+  options.seekable = true;
+  return std::make_unique<CountingSource>(options);
+}
 
 TEST(ReadAheadSource, DeliversEveryFrameInOrderThenTheEnd) {
-  auto source = read_ahead(std::make_unique<CountingSource>(40, std::set<int>{}), 3);
-  EXPECT_EQ(source->info().kind, "folder");
+  auto source = read_ahead(counting(40), 3);
+  EXPECT_EQ(source->info().kind, "test");
   ASSERT_EQ(source->info().frame_count, std::optional<std::size_t>(40));
   for (int i = 0; i < 40; ++i) {
     auto frame = source->next();
@@ -72,7 +47,7 @@ TEST(ReadAheadSource, DeliversEveryFrameInOrderThenTheEnd) {
 }
 
 TEST(ReadAheadSource, AnErrorComesAtItsPlaceAfterTheFramesReadBeforeIt) {
-  auto source = read_ahead(std::make_unique<CountingSource>(10, std::set<int>{4}), 4);
+  auto source = read_ahead(counting(10, {4}), 4);
   for (int i = 0; i < 4; ++i) {
     auto frame = source->next();
     ASSERT_TRUE(frame);
@@ -82,7 +57,7 @@ TEST(ReadAheadSource, AnErrorComesAtItsPlaceAfterTheFramesReadBeforeIt) {
     source->next();
     FAIL() << "frame 4 must throw";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("frame_4.png"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("frames/0004.png"), std::string::npos) << e.what();
   }
   auto after = source->next();  // as the wrapped source would go on
   ASSERT_TRUE(after);
@@ -90,9 +65,9 @@ TEST(ReadAheadSource, AnErrorComesAtItsPlaceAfterTheFramesReadBeforeIt) {
 }
 
 TEST(ReadAheadSource, ReadsNoFurtherAheadThanItsDepth) {
-  auto counting = std::make_unique<CountingSource>(100, std::set<int>{});
-  const CountingSource& inner = *counting;
-  auto source = read_ahead(std::move(counting), 3);
+  auto wrapped = counting(100);
+  const CountingSource& inner = *wrapped;
+  auto source = read_ahead(std::move(wrapped), 3);
   ASSERT_TRUE(source->next());
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
   while (inner.calls() < 4 && std::chrono::steady_clock::now() < deadline)
@@ -102,7 +77,7 @@ TEST(ReadAheadSource, ReadsNoFurtherAheadThanItsDepth) {
 }
 
 TEST(ReadAheadSource, RewindStartsOverWhileTheReaderIsBusy) {
-  auto source = read_ahead(std::make_unique<CountingSource>(30, std::set<int>{}, std::chrono::microseconds(200)), 4);
+  auto source = read_ahead(counting(30, {}, std::chrono::microseconds(200)), 4);
   for (int i = 0; i < 7; ++i) ASSERT_TRUE(source->next());
   source->rewind();
   for (int i = 0; i < 30; ++i) {
@@ -114,7 +89,7 @@ TEST(ReadAheadSource, RewindStartsOverWhileTheReaderIsBusy) {
 }
 
 TEST(ReadAheadSource, SeekDropsWhatWasReadAheadAndGoesOnFromThere) {
-  auto source = read_ahead(std::make_unique<CountingSource>(50, std::set<int>{}), 4);
+  auto source = read_ahead(counting(50), 4);
   ASSERT_TRUE(source->info().seekable);
   for (int i = 0; i < 3; ++i) ASSERT_TRUE(source->next());
   source->seek(30);
@@ -135,7 +110,7 @@ TEST(ReadAheadSource, SeekDropsWhatWasReadAheadAndGoesOnFromThere) {
 }
 
 TEST(ReadAheadSource, DestroyedWithAFullQueueDoesNotHang) {
-  auto source = read_ahead(std::make_unique<CountingSource>(1000, std::set<int>{}), 2);
+  auto source = read_ahead(counting(1000), 2);
   ASSERT_TRUE(source->next());
   std::this_thread::sleep_for(std::chrono::milliseconds(5));
   source.reset();  // the reader waits for room; stopping must wake it
@@ -156,7 +131,7 @@ TEST(ReadAheadSource, LiveSourcesAndZeroDepthAreLeftAsTheyAre) {
   auto live = std::make_unique<LiveSource>();
   const Source* live_address = live.get();
   EXPECT_EQ(read_ahead(std::move(live)).get(), live_address);
-  auto dataset = std::make_unique<CountingSource>(3, std::set<int>{});
+  auto dataset = counting(3);
   const Source* dataset_address = dataset.get();
   EXPECT_EQ(read_ahead(std::move(dataset), 0).get(), dataset_address);
   EXPECT_THROW(read_ahead(nullptr), std::invalid_argument);

@@ -12,6 +12,7 @@
 #include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/worker/worker.hpp"
+#include "counting_source.hpp"
 
 #if defined(__SANITIZE_THREAD__)
 namespace {
@@ -38,47 +39,18 @@ WorkerOptions quality_only(WorkerOptions options = {}) {
   return options;
 }
 
-// A dataset-like source of `count` small frames whose pixel value is the frame index; frame
-// `bad_index` (if any) throws as a corrupt file would.
-class CountingSource final : public Source {
-public:
-  CountingSource(int count, double period_s = 0.05, int bad_index = -1, int bad_type = -1, bool seekable = false)
-      : count_(count), period_s_(period_s), bad_index_(bad_index), bad_type_(bad_type) {
-    info_.kind = "test";
-    info_.description = "counting source";
-    info_.frame_count = static_cast<std::size_t>(count);
-    info_.seekable = seekable;
-  }
-  const SourceInfo& info() const override { return info_; }
-  std::optional<Frame> next() override {
-    if (index_ >= count_) return std::nullopt;
-    if (index_ == bad_index_) throw InputError("frames/000" + std::to_string(index_) + ".png", "corrupt PNG");
-    Frame frame;
-    frame.image = cv::Mat(8, 8, index_ == bad_type_ ? CV_32FC1 : CV_8UC1, cv::Scalar(index_ % 256));
-    frame.index = index_;
-    frame.timestamp_s = index_ * period_s_;
-    frame.name = "frame " + std::to_string(index_);
-    ++index_;
-    return frame;
-  }
-  void rewind() override { index_ = 0; }
-  void seek(std::size_t position) override {
-    if (!info_.seekable) return Source::seek(position);
-    require_frame_position(position, static_cast<std::size_t>(count_));
-    index_ = static_cast<int>(position);
-  }
+using testing::CountingOptions;
+using testing::CountingSource;
 
-private:
-  SourceInfo info_;
-  int count_;
-  double period_s_;
-  int bad_index_;
-  int bad_type_;
-  int index_ = 0;
-};
-
+// A counting source (counting_source.hpp); frame `bad_index` is corrupt, frame `bad_type` of
+// the wrong pixel type.
 SourceFactory counting(int count, double period_s = 0.05, int bad_index = -1, int bad_type = -1) {
-  return [=] { return std::make_unique<CountingSource>(count, period_s, bad_index, bad_type); };
+  CountingOptions options;
+  options.count = count;
+  options.period_s = period_s;
+  options.wrong_type_index = bad_type;
+  if (bad_index >= 0) options.corrupt = {bad_index};
+  return [options] { return std::make_unique<CountingSource>(options); };
 }
 
 bool settled(const Snapshot& s) {
@@ -137,7 +109,10 @@ TEST(Worker, StopRewindsAndStartBeginsAgain) {
 }
 
 SourceFactory seekable_counting(int count) {
-  return [=] { return std::make_unique<CountingSource>(count, 0.05, -1, -1, true); };
+  CountingOptions options;
+  options.count = count;
+  options.seekable = true;
+  return [options] { return std::make_unique<CountingSource>(options); };
 }
 
 TEST(Worker, SeekPausesOnTheFrameJumpedToAndStartGoesOnFromThere) {

@@ -504,11 +504,8 @@ void Worker::rewind_source() {
 }
 
 void Worker::seek_source(std::size_t position) {
-  const auto refuse = [this](std::string message) {
-    auto next = copy_of_latest();
-    next->message = std::move(message);
-    publish(std::move(next));
-  };
+  // A refused jump changes nothing but the message.
+  const auto refuse = [this](std::string message) { publish_state(state_, std::move(message)); };
   if (!source_) return refuse("no source selected");
   if (!source_->info().seekable) return refuse(fmt::format("{}: this source cannot jump to a frame", source_->info().description));
   if (recorder_ && !recorder_finished_) return refuse("cannot jump while recording: stop the recording first");

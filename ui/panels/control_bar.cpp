@@ -131,9 +131,10 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
   // how many frames a live stream delivered.
   const std::size_t total = snapshot.source.frame_count.value_or(0);
   const std::int64_t position = snapshot.frame ? snapshot.frame->index + 1 : 0;
-  const bool jumps_refused = recording.state == RecordingStatus::State::Recording;  // a gap in the session
   const bool seekable = can_post && total > 0 && snapshot.source.seekable;
-  if (!seekable) seek_target_.reset();
+  // While recording a jump would leave a gap in the session: the bar only shows the progress.
+  const bool can_jump = seekable && recording.state != RecordingStatus::State::Recording;
+  if (!can_jump) seek_target_.reset();
   const std::string progress = seek_target_ ? fmt::format("-> {} / {}", *seek_target_ + 1, total)
                                : total > 0  ? fmt::format("{} / {}", position, total)
                                             : fmt::format("{} frames", snapshot.frames_processed);
@@ -170,7 +171,7 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
       const double f = std::clamp(static_cast<double>(x - bar.x) / bar_width, 0.0, 1.0);
       return std::min(total - 1, static_cast<std::size_t>(std::max(0.0, std::ceil(f * static_cast<double>(total)) - 1.0)));
     };
-    if (seekable && !jumps_refused) {
+    if (can_jump) {
       ImGui::InvisibleButton("##seek", size);
       if (ImGui::IsItemActive()) seek_target_ = frame_under(ImGui::GetIO().MousePos.x);
       if (ImGui::IsItemDeactivated() && seek_target_) {
@@ -181,7 +182,6 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
         ImGui::SetTooltip("Frame %zu: click or drag to jump there.\nThe calibration and the odometry start again at that frame.",
                           frame_under(ImGui::GetIO().MousePos.x) + 1);
     } else {
-      seek_target_.reset();
       ImGui::Dummy(size);
       if (seekable && ImGui::IsItemHovered()) ImGui::SetTooltip("Stop the recording to jump to another frame");
     }
@@ -191,7 +191,7 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
     const float y = std::round(bar.y + 0.5f * (size.y - h));
     draw->AddRectFilled(ImVec2(bar.x, y), ImVec2(bar.x + bar_width, y + h), colours::frame_bg, 2.0f);
     draw->AddRectFilled(ImVec2(bar.x, y), ImVec2(bar.x + bar_width * fraction, y + h), colours::accent, 2.0f);
-    if (seekable && !jumps_refused) {  // a knob says the bar can be dragged
+    if (can_jump) {  // a knob says the bar can be dragged
       const float radius = std::round(size.y * 0.28f);
       draw->AddCircleFilled(ImVec2(bar.x + bar_width * fraction, bar.y + 0.5f * size.y), radius, colours::text);
     }

@@ -94,7 +94,7 @@ void truth_residuals(const std::vector<PhotometricKeyframe>& keyframes, const Si
       for (int k = 0; k < kBackendPixels; ++k) {
         const float grey = ob.grey[static_cast<std::size_t>(k)];
         if (grey < 0.0f) continue;
-        const Eigen::Vector2d p = ob.position + backend_pixel_offset(k);
+        const Eigen::Vector2d p = ob.pixel(k);
         const double V = o.vignette(VignetteModel::radius(p.x(), p.y(), kf.width, kf.height));
         points[{ob.track_id, k}].emplace_back(grey, std::log(g_of(grey) / (kf.exposure * V)));
         radii[{ob.track_id, k}].push_back(VignetteModel::radius(p.x(), p.y(), kf.width, kf.height));

@@ -3,11 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
-#include <limits>
 #include <stdexcept>
 #include <string>
 
-#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 
 namespace nirslam {
 
@@ -116,44 +115,6 @@ bool ExposureEstimator::irradiance_patch(const cv::Mat& intensity, const Eigen::
   return true;
 }
 
-std::optional<Eigen::Matrix2d> ExposureEstimator::deformation(const TrackedFrame& tracked, std::size_t index,
-                                                              const Anchor& anchor) {
-  const std::optional<Eigen::Matrix2d> undetermined;
-  const Eigen::Vector2d& centre = tracked.tracks[index].position;
-  pairs_.clear();
-  for (const Neighbour& n : anchor.neighbours) {
-    const auto it = track_index_.find(n.id);
-    if (it != track_index_.end()) pairs_.emplace_back(n.offset, tracked.tracks[it->second].position - centre);
-  }
-  // Least squares A = (sum now anchor^T) (sum anchor anchor^T)^-1 over the inliers; twice, the
-  // second time without the neighbours the first fit does not explain.
-  Eigen::Matrix2d a = Eigen::Matrix2d::Identity();
-  double threshold = std::numeric_limits<double>::infinity();
-  for (int pass = 0; pass < 2; ++pass) {
-    Eigen::Matrix2d cross = Eigen::Matrix2d::Zero(), spread = Eigen::Matrix2d::Zero();
-    int used = 0;
-    for (const auto& [before, now] : pairs_) {
-      if ((now - a * before).norm() > threshold) continue;
-      cross += now * before.transpose();
-      spread += before * before.transpose();
-      ++used;
-    }
-    if (used < options_.min_neighbours) return undetermined;
-    // Neighbours along one line (an edge, a row of corners) leave A across it open.
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(spread / used, Eigen::EigenvaluesOnly);
-    if (!(eigen.eigenvalues()(0) >= options_.min_neighbour_spread_px * options_.min_neighbour_spread_px)) return undetermined;
-    a = cross * spread.inverse();
-    fit_residuals_.clear();
-    for (const auto& [before, now] : pairs_) fit_residuals_.push_back((now - a * before).norm());
-    const auto middle = fit_residuals_.begin() + static_cast<std::ptrdiff_t>(fit_residuals_.size() / 2);
-    std::nth_element(fit_residuals_.begin(), middle, fit_residuals_.end());
-    threshold = std::max(1.0, 3.0 * *middle);
-  }
-  const double area = std::abs(a.determinant());
-  if (!a.allFinite() || !(area >= 1.0 / options_.max_area_change && area <= options_.max_area_change)) return undetermined;
-  return a;
-}
-
 bool ExposureEstimator::log_irradiance_ratio(const PatchSamples& now, const PatchSamples& now_weight,
                                              const PatchSamples& anchor, const PatchSamples& anchor_weight,
                                              double& log_ratio, double& trust) const {
@@ -183,23 +144,10 @@ void ExposureEstimator::anchor_all(const TrackedFrame& tracked, double log_expos
     // anchored now, every later ratio to this anchor would be unknown for the track's whole life.
     if (log_illumination != nullptr && !std::isfinite((*log_illumination)[i])) continue;
     Anchor& anchor = anchors_[id];
-    anchor = Anchor{irradiance_[i], weight_[i], log_exposure, log_illumination ? (*log_illumination)[i] : 0.0, {}};
-    if (!options_.follow_deformation) continue;
-    // The nearest tracks around it (any, anchored or not: only their positions are used).
-    const Eigen::Vector2d& centre = tracked.tracks[i].position;
-    const double radius_sq = options_.neighbour_radius_px * options_.neighbour_radius_px;
-    nearest_.clear();
-    for (std::size_t j = 0; j < tracked.tracks.size(); ++j) {
-      const double d2 = (tracked.tracks[j].position - centre).squaredNorm();
-      if (j != i && d2 <= radius_sq) nearest_.emplace_back(d2, j);
-    }
-    const std::size_t keep = std::min(nearest_.size(), static_cast<std::size_t>(std::max(options_.max_neighbours, 0)));
-    std::partial_sort(nearest_.begin(), nearest_.begin() + static_cast<std::ptrdiff_t>(keep), nearest_.end());
-    anchor.neighbours.reserve(keep);
-    for (std::size_t k = 0; k < keep; ++k) {
-      const TrackObservation& n = tracked.tracks[nearest_[k].second];
-      anchor.neighbours.push_back(Neighbour{n.id, n.position - centre});
-    }
+    anchor = Anchor{irradiance_[i], weight_[i], log_exposure, log_illumination ? (*log_illumination)[i] : 0.0,
+                    Eigen::Matrix2d::Identity(), tracked.tracks[i].surface};
+    // The anchor's window is the fixed one; later patches are mapped back to it (see the header).
+    if (options_.follow_deformation) anchor.deformation_inverse = tracked.tracks[i].deformation.inverse();
   }
 }
 
@@ -251,9 +199,9 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
                                              irradiance_[i], weight_[i]);
       usable += irradiance_valid_[i];
     }
-  track_index_.clear();
-  if (options_.follow_deformation)
-    for (std::size_t i = 0; i < tracked.tracks.size(); ++i) track_index_.emplace(tracked.tracks[i].id, i);
+  if (options_.follow_deformation && !tracked.deformation_estimated)
+    throw std::invalid_argument("exposure estimator: follow_deformation needs the tracks' deformation "
+                                "(PhotometricTrackerOptions::estimate_deformation)");
   candidates_.clear();
   candidate_trust_.clear();
   candidate_ids_.clear();
@@ -266,16 +214,16 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
     const double light_change = log_illumination ? (*log_illumination)[i] - it->second.log_illumination : 0.0;
     // The patch over the same surface as at the anchor (see the header): sampled under A unless
     // that is the fixed window to within a hundredth of a pixel at its corners.
-    // A track whose deformation its neighbours no longer determine (they were lost) gives no
-    // candidate and is re-anchored at this frame's estimate, where it gets new neighbours.
+    // A track on a new surface since its anchor (its deformation was lost) gives no candidate and
+    // is re-anchored at this frame's estimate.
     const PatchSamples* now = &irradiance_[i];
     const PatchSamples* now_weight = &weight_[i];
     bool sampled = irradiance_valid_[i] != 0;
     if (options_.follow_deformation) {
-      const std::optional<Eigen::Matrix2d> a = deformation(tracked, i, it->second);
-      if (!a) continue;  // not kept in `alive`: re-anchored below
-      if (sampled && (*a - Eigen::Matrix2d::Identity()).cwiseAbs().maxCoeff() * kPatchRadius > 0.01) {
-        sampled = irradiance_patch(tracked.intensity, tracked.tracks[i].position, *a, warped_irradiance_, warped_weight_);
+      if (tracked.tracks[i].surface != it->second.surface) continue;  // not kept in `alive`: re-anchored below
+      const Eigen::Matrix2d a = tracked.tracks[i].deformation * it->second.deformation_inverse;
+      if (sampled && (a - Eigen::Matrix2d::Identity()).cwiseAbs().maxCoeff() * kPatchRadius > 0.01) {
+        sampled = irradiance_patch(tracked.intensity, tracked.tracks[i].position, a, warped_irradiance_, warped_weight_);
         now = &warped_irradiance_;
         now_weight = &warped_weight_;
       }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 
 namespace nirslam {
 
@@ -11,9 +12,30 @@ Eigen::Vector2d backend_pixel_offset(int k) {
                          static_cast<double>((k / 3 - 1) * kBackendPixelPitch));
 }
 
+Eigen::Vector2d KeyframeObservation::pixel(int k) const {
+  return position + deformation.cast<double>() * backend_pixel_offset(k);
+}
+
+namespace {
+
+// Bilinear sample of a CV_32FC1 image; false outside the interpolation domain.
+bool bilinear(const cv::Mat& image, double x, double y, float& value) {
+  if (!(x >= 0.0 && y >= 0.0 && x < image.cols - 1 && y < image.rows - 1)) return false;
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+  const float* row0 = image.ptr<float>(y0) + x0;
+  const float* row1 = image.ptr<float>(y0 + 1) + x0;
+  value = (1.0f - fy) * ((1.0f - fx) * row0[0] + fx * row0[1]) + fy * ((1.0f - fx) * row1[0] + fx * row1[1]);
+  return true;
+}
+
+}  // namespace
+
 PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, double timestamp_s, double exposure,
                                               bool exposure_known, double black_level, double saturation_level,
-                                              const std::vector<double>* log_illumination) {
+                                              const std::vector<double>* log_illumination, bool follow_surfaces) {
+  if (follow_surfaces && (!tracked.deformation_estimated || tracked.intensity.empty() || tracked.intensity.type() != CV_32FC1))
+    throw std::invalid_argument("photometric keyframe: following the surface needs the tracks' deformation and the frame");
   PhotometricKeyframe keyframe;
   keyframe.frame_index = tracked.frame_index;
   keyframe.timestamp_s = timestamp_s;
@@ -32,6 +54,28 @@ PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, doubl
     if (log_illumination != nullptr && t < log_illumination->size())
       o.log_illumination = static_cast<float>((*log_illumination)[t]);
     int valid = 0;
+    if (follow_surfaces) {
+      // The grid where the surface it covered at the surface's start is now (see the header): the
+      // grey value and the central-difference gradient (1 px steps in this frame) at each pixel.
+      o.deformation = track.deformation.cast<float>();
+      o.surface = track.surface;
+      for (int k = 0; k < kBackendPixels; ++k) {
+        const Eigen::Vector2d p = o.pixel(k);
+        float y = 0.0f, left = 0.0f, right = 0.0f, up = 0.0f, down = 0.0f;
+        const bool inside = bilinear(tracked.intensity, p.x(), p.y(), y) &&
+                            bilinear(tracked.intensity, p.x() - 1.0, p.y(), left) &&
+                            bilinear(tracked.intensity, p.x() + 1.0, p.y(), right) &&
+                            bilinear(tracked.intensity, p.x(), p.y() - 1.0, up) &&
+                            bilinear(tracked.intensity, p.x(), p.y() + 1.0, down);
+        const float gx = 0.5f * 255.0f * (right - left), gy = 0.5f * 255.0f * (down - up);
+        const bool clipped = !inside || !(y > black_level && y < saturation_level);
+        o.gradient_sq[static_cast<std::size_t>(k)] = inside ? gx * gx + gy * gy : 0.0f;
+        o.grey[static_cast<std::size_t>(k)] = clipped ? -1.0f : 255.0f * y;
+        valid += !clipped;
+      }
+      if (valid > 0) keyframe.observations.push_back(o);
+      continue;
+    }
     for (int k = 0; k < kBackendPixels; ++k) {
       // Patch row/column of the pixel: the 3 x 3 grid at -3, 0, +3 around the centre (4, 4).
       const int row = kPatchRadius + (k / 3 - 1) * kBackendPixelPitch;

@@ -83,9 +83,20 @@ std::string estimate_rejection(const EstimateGate& gate, const ResponseModel& re
   return {};
 }
 
+namespace {
+
+// The tracker estimates the tracks' deformation when either consumer follows the surface.
+PhotometricTrackerOptions tracker_options(const OnlineCalibrationOptions& options) {
+  PhotometricTrackerOptions tracker = options.tracker;
+  tracker.estimate_deformation |= options.exposure.follow_deformation || options.keyframes_follow_deformation;
+  return tracker;
+}
+
+}  // namespace
+
 OnlinePhotometricCalibration::OnlinePhotometricCalibration(OnlineCalibrationOptions options)
     : options_(std::move(options)),
-      tracker_(options_.tracker),
+      tracker_(tracker_options(options_)),
       exposure_(backend_options(options_).initial_response, options_.backend.initial_vignette, options_.exposure),
       selector_(options_.keyframes),
       backend_(backend_options(options_)) {
@@ -252,7 +263,7 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
       job.kind = Job::Keyframe;
       job.keyframe = make_photometric_keyframe(tracked, frame.timestamp_s, known ? *reported : *out.exposure, known,
                                                options_.tracker.black_level, options_.tracker.saturation_level,
-                                               log_illumination);
+                                               log_illumination, options_.keyframes_follow_deformation);
       if (!options_.background_thread) {
         run_job(job);
       } else {

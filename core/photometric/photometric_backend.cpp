@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <optional>
 #include <stdexcept>
 #include <unordered_map>
@@ -244,19 +245,34 @@ std::vector<std::pair<std::int64_t, double>> PhotometricBackend::keyframe_exposu
 void PhotometricBackend::build_problem(const std::vector<int>& window) {
   points_.clear();
   observations_.clear();
-  // Track id -> (window position, observation) over the window.
-  std::unordered_map<std::int64_t, std::vector<std::pair<int, const KeyframeObservation*>>> tracks;
+  // (track id, surface) -> (window position, observation) over the window: a track's observations
+  // of different surfaces (keyframe_selection.hpp; only when the grid follows the surface) are
+  // not of the same surface points.
+  struct SurfaceKey {
+    std::int64_t track_id;
+    std::int32_t surface;
+    bool operator==(const SurfaceKey&) const = default;
+  };
+  struct SurfaceHash {
+    std::size_t operator()(const SurfaceKey& key) const {
+      return std::hash<std::int64_t>()(key.track_id * 1000003 + key.surface);
+    }
+  };
+  std::unordered_map<SurfaceKey, std::vector<std::pair<int, const KeyframeObservation*>>, SurfaceHash> tracks;
   for (int w = 0; w < static_cast<int>(window.size()); ++w)
     for (const KeyframeObservation& o : keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])].observations)
-      tracks[o.track_id].emplace_back(w, &o);
+      tracks[SurfaceKey{o.track_id, o.surface}].emplace_back(w, &o);
   std::vector<const std::vector<std::pair<int, const KeyframeObservation*>>*> usable;
   usable.reserve(tracks.size());
   for (const auto& [id, list] : tracks)
     if (static_cast<int>(list.size()) >= options_.min_observations_per_point) usable.push_back(&list);
-  // Longest tracks first (most constraints per unknown); ties by first keyframe for determinism.
+  // Longest tracks first (most constraints per unknown); ties by track and surface for determinism.
   std::sort(usable.begin(), usable.end(), [](const auto* a, const auto* b) {
     if (a->size() != b->size()) return a->size() > b->size();
-    return (*a)[0].second->track_id < (*b)[0].second->track_id;
+    const KeyframeObservation& first_a = *(*a)[0].second;
+    const KeyframeObservation& first_b = *(*b)[0].second;
+    if (first_a.track_id != first_b.track_id) return first_a.track_id < first_b.track_id;
+    return first_a.surface < first_b.surface;
   });
   // Once some keyframe of the window carries the light's factor, keyframes without it (before the
   // caller had distances) cannot be compared with them: their observations are left out.
@@ -276,7 +292,7 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
         if (modelled && !keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])].illumination_modelled) continue;
         if (std::isnan(log_reference)) log_reference = o->log_illumination;
         const PhotometricKeyframe& kf = keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])];
-        const Eigen::Vector2d p = o->position + backend_pixel_offset(k);
+        const Eigen::Vector2d p = o->pixel(k);
         Observation ob;
         ob.keyframe = w;
         ob.grey = grey;

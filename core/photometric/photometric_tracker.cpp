@@ -149,7 +149,8 @@ std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::
   return result;
 }
 
-PhotometricTracker::PhotometricTracker(PhotometricTrackerOptions options) : options_(options) {
+PhotometricTracker::PhotometricTracker(PhotometricTrackerOptions options)
+    : options_(options), deformation_(options_.deformation) {
   if (options_.pyramid_levels < 1 || options_.max_tracks < 1 || options_.min_tracks < 0 || options_.grid_cols < 1 ||
       options_.grid_rows < 1)
     throw std::invalid_argument("photometric tracker: bad options");
@@ -158,6 +159,7 @@ PhotometricTracker::PhotometricTracker(PhotometricTrackerOptions options) : opti
 void PhotometricTracker::reset() {
   previous_pyramid_.clear();
   current_ = {};
+  deformation_.reset();
 }
 
 const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
@@ -223,6 +225,7 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
   next.intensity = pyramid[0];
   current_ = std::move(next);
   if (static_cast<int>(current_.tracks.size()) < options_.min_tracks) detect(pyramid);
+  if (options_.estimate_deformation) deformation_.update(current_);
   previous_pyramid_ = std::move(pyramid);
   return current_;
 }

@@ -177,6 +177,10 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_TRUST_WIDTH")) options.exposure.trust_width_grey = std::atof(w);
   // The exposure estimator's patches follow the surface's deformation (exposure_estimator.hpp; off by default).
   if (std::getenv("NIRSLAM_PHOTOMETRIC_FOLLOW_DEFORMATION") != nullptr) options.exposure.follow_deformation = true;
+  // The back end's keyframe observations follow the surface too (keyframe_selection.hpp; off by default).
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_BACKEND_FOLLOW") != nullptr) options.keyframes_follow_deformation = true;
+  // The neighbourhood the deformation is fitted over (track_deformation.hpp, 60 px by default).
+  if (const char* r = std::getenv("NIRSLAM_PHOTOMETRIC_NEIGHBOUR_RADIUS")) options.tracker.deformation.neighbour_radius_px = std::atof(r);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
     options.backend.initial_response = sim_options.response;
     options.backend.initial_vignette = sim_options.vignette;

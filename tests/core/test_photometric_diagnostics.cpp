@@ -9,6 +9,7 @@
 // at the true position interpolated in irradiance) and the back end is fitted to each, started at
 // the true model or at gamma; it prints the errors, G_est - G_true along the grey scale, the
 // observed grey histogram and the tracking drift against the true projection.
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -94,7 +95,7 @@ void truth_residuals(const std::vector<PhotometricKeyframe>& keyframes, const Si
       for (int k = 0; k < kBackendPixels; ++k) {
         const float grey = ob.grey[static_cast<std::size_t>(k)];
         if (grey < 0.0f) continue;
-        const Eigen::Vector2d p = ob.position + backend_pixel_offset(k);
+        const Eigen::Vector2d p = ob.pixel(k);
         const double V = o.vignette(VignetteModel::radius(p.x(), p.y(), kf.width, kf.height));
         points[{ob.track_id, k}].emplace_back(grey, std::log(g_of(grey) / (kf.exposure * V)));
         radii[{ob.track_id, k}].push_back(VignetteModel::radius(p.x(), p.y(), kf.width, kf.height));
@@ -477,6 +478,117 @@ TEST(PhotometricAccuracy, DiagnoseClipping) {
       std::printf("%-8s %-7s target %.2f | frames 15+: %s | all: %s\n", sim::to_string(scene).data(),
                   std::string(to_string(preset)).c_str(), o.target_grey, a, b);
     }
+}
+
+}  // namespace
+}  // namespace nirslam
+
+namespace nirslam {
+namespace {
+
+// The tracks' deformation (track_deformation.hpp) against the true local map of the surface:
+// when a track's surface begins, the four points 4 px to its left, right, above and below are
+// back-projected with the true depth; in every later frame they are projected with the true pose,
+// and A_true is the least-squares map of the four offsets (about the projected centre). Printed
+// by image radius: how often and how far A_est is off, and its bias in area (det A_est / det A_true
+// - 1; a negative bias means the following grid covers less surface than at birth, so dark corners
+// darken as in the fixed window). NIRSLAM_PHOTOMETRIC_DEFORMATION_DIAG=scene (room, outdoor,
+// parking, tunnel; NIRSLAM_PHOTOMETRIC_SUPERSAMPLING and NIRSLAM_PHOTOMETRIC_NEIGHBOUR_RADIUS as
+// with the table).
+TEST(PhotometricAccuracy, DiagnoseDeformation) {
+  const char* env = std::getenv("NIRSLAM_PHOTOMETRIC_DEFORMATION_DIAG");
+  if (env == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_DEFORMATION_DIAG=scene";
+  const std::string spec = env;
+  SimulatorOptions o;
+  o.scene = sim::SceneKind::Room;
+  if (spec.find("outdoor") != std::string::npos) o.scene = sim::SceneKind::Outdoor;
+  if (spec.find("parking") != std::string::npos) o.scene = sim::SceneKind::Parking;
+  if (spec.find("tunnel") != std::string::npos) o.scene = sim::SceneKind::Tunnel;
+  o.width = 320;
+  o.height = 240;
+  o.supersampling = 1;
+  if (const char* samples = std::getenv("NIRSLAM_PHOTOMETRIC_SUPERSAMPLING")) o.supersampling = std::atoi(samples);
+  o.frames = 150;
+  o.exposure_mode = ExposureMode::Auto;
+  o.exposure_ms = 2.0;
+  o.powers_w = {0.0};
+  o.ambient_irradiance = 0.4;
+  o.response = ResponseModel::from_preset(ResponsePreset::Gamma);
+  o.texture_filtering = TextureFiltering::DistanceIndependent;
+  Simulator sim(o);
+  const auto camera = sim.camera();
+  PhotometricTrackerOptions tracker_options;
+  tracker_options.estimate_deformation = true;
+  if (const char* r = std::getenv("NIRSLAM_PHOTOMETRIC_NEIGHBOUR_RADIUS")) tracker_options.deformation.neighbour_radius_px = std::atof(r);
+  PhotometricTracker tracker(tracker_options);
+  struct Start {
+    std::int32_t surface = -1;
+    bool ok = false;
+    std::array<Eigen::Vector3d, 5> world;  // centre, then +x, -x, +y, -y at 4 px
+  };
+  const std::array<Eigen::Vector2d, 5> offsets = {Eigen::Vector2d(0, 0), Eigen::Vector2d(4, 0), Eigen::Vector2d(-4, 0),
+                                                  Eigen::Vector2d(0, 4), Eigen::Vector2d(0, -4)};
+  std::map<std::int64_t, Start> starts;
+  constexpr int kBins = 5;
+  std::array<double, kBins> bias{}, error{}, true_area{};
+  std::array<int, kBins> count{};
+  while (auto f = sim.next(true)) {
+    const TrackedFrame& tracked = tracker.process(f->frame);
+    const SE3 T_cw = f->T_world_cam.inverse();
+    for (const TrackObservation& t : tracked.tracks) {
+      Start& s = starts[t.id];
+      if (s.surface != t.surface) {  // the surface begins here: A = I
+        s.surface = t.surface;
+        s.ok = true;
+        for (std::size_t k = 0; k < offsets.size(); ++k) {
+          const Eigen::Vector2d p = t.position + offsets[k];
+          const auto ray = camera->unproject(p);
+          const double z = bilinear(f->depth, p.x(), p.y());
+          if (!ray || !(z > 0.0)) s.ok = false;
+          else s.world[k] = f->T_world_cam * (*ray * z);
+        }
+        // Not across a depth edge: the five depths within 5 % of each other.
+        if (s.ok) {
+          double lo = 1e30, hi = 0.0;
+          for (const Eigen::Vector3d& w : s.world) {
+            const double z = (T_cw * w).z();
+            lo = std::min(lo, z);
+            hi = std::max(hi, z);
+          }
+          s.ok = hi < 1.05 * lo;
+        }
+        continue;
+      }
+      if (!s.ok) continue;
+      std::array<Eigen::Vector2d, 5> now;
+      bool visible = true;
+      for (std::size_t k = 0; k < offsets.size(); ++k) {
+        const auto q = camera->project(T_cw * s.world[k]);
+        if (!q) visible = false;
+        else now[k] = *q;
+      }
+      if (!visible) continue;
+      Eigen::Matrix2d cross = Eigen::Matrix2d::Zero(), spread = Eigen::Matrix2d::Zero();
+      for (std::size_t k = 1; k < offsets.size(); ++k) {
+        cross += (now[k] - now[0]) * offsets[k].transpose();
+        spread += offsets[k] * offsets[k].transpose();
+      }
+      const Eigen::Matrix2d a_true = cross * spread.inverse();
+      const double r = VignetteModel::radius(t.position.x(), t.position.y(), o.width, o.height);
+      const int bin = std::min(static_cast<int>(r * kBins), kBins - 1);
+      bias[static_cast<std::size_t>(bin)] += t.deformation.determinant() / a_true.determinant() - 1.0;
+      error[static_cast<std::size_t>(bin)] += (t.deformation - a_true).cwiseAbs().maxCoeff();
+      true_area[static_cast<std::size_t>(bin)] += a_true.determinant();
+      ++count[static_cast<std::size_t>(bin)];
+    }
+  }
+  std::printf("%s: det A_est / det A_true - 1 (mean), max |A_est - A_true| (mean), det A_true (mean), by image radius:\n", env);
+  for (int b = 0; b < kBins; ++b) {
+    const auto i = static_cast<std::size_t>(b);
+    if (count[i] == 0) continue;
+    std::printf("  r %.1f-%.1f: %+.4f, %.4f, %.3f (%d track-frames)\n", b / double(kBins), (b + 1) / double(kBins),
+                bias[i] / count[i], error[i] / count[i], true_area[i] / count[i], count[i]);
+  }
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include "nirslam/photometric/exposure_estimator.hpp"
 #include "nirslam/photometric/illumination_factor.hpp"
 #include "nirslam/photometric/photometric_tracker.hpp"
+#include "nirslam/photometric/track_deformation.hpp"
 #include "nirslam/sim/simulator.hpp"
 
 namespace nirslam {
@@ -265,6 +266,7 @@ TEST(ExposureEstimator, PatchesFollowTheSurfaceAsTheCameraApproaches) {
     ExposureEstimatorOptions options;
     options.follow_deformation = follow;
     ExposureEstimator estimator(ResponseModel::from_preset(ResponsePreset::Linear), VignetteModel{}, options);
+    TrackDeformation deformation;  // what the tracker runs with estimate_deformation
     ExposureEstimate last;
     for (int k = 0; k < kFrames; ++k) {
       const double zoom = std::pow(1.025, k);
@@ -288,6 +290,7 @@ TEST(ExposureEstimator, PatchesFollowTheSurfaceAsTheCameraApproaches) {
         track.reference.setZero();
         tracked.tracks.push_back(track);
       }
+      if (follow) deformation.update(tracked);
       last = estimator.update(tracked);
       EXPECT_TRUE(last.updated()) << last.reason;
     }

@@ -36,24 +36,17 @@
 //
 // The same surface, not the same pixels (follow_deformation; OFF by default, see below): a fixed
 // 9 x 9 pixel window around a tracked point covers less and less of the surface as the camera
-// approaches it (and more as it recedes), and the features the tracker picks (corners: crossings
-// of dark joints, spots) are not like their surroundings, so the window's mean radiance changes
-// with the track's magnification even where the radiance at the point itself is constant. On the
-// simulated tunnel (constant radiance, camera moving forward, the TRUE f and V) the window's
-// rendered radiance fell 0.5 % per 10 frames of a track's life against its anchor (5 % after 80
-// frames), while the radiance at the tracked point itself stayed within 0.1 % (median); chained
-// over re-anchored tracks that is the tunnel's exposure drift (estimate / truth 0.93 after 145
-// frames). With follow_deformation each anchor keeps its neighbouring tracks' offsets, and a
-// track's patch is sampled now at position + A o (o the anchor's pixel offsets), A the 2 x 2 map
-// fitted by least squares to how those offsets have changed since (neighbours more than 1 px or
-// three median residuals off the first fit, e.g. across a depth edge, are dropped and A
-// refitted). A track whose neighbours no longer determine A (too few left, or all along a line)
-// gives no candidate and is re-anchored at the frame's estimate, where it gets new neighbours.
-// Measured (README "Photometric calibration accuracy"): with the TRUE f and V the tunnel's
-// exposure median goes from 2.8-5.6 % to 0.6-1.3 %, but on the outdoor rows from 0.3-2.2 % to
-// 0.7-4.4 % (the warped patch's radiance itself falls where A grows beyond about 1.2 in area
-// there, cause not found); with the back end's estimated f and V it is worse on 11 of the 16
-// rows (that model was fitted to fixed-window observations). Hence off.
+// approaches it, and the window's mean radiance changes with the track's magnification even where
+// the radiance at the point itself is constant (track_deformation.hpp; on the simulated tunnel
+// that is the exposure drift, estimate / truth 0.93 after 145 frames with the TRUE f and V). With
+// follow_deformation a track's patch is sampled now at position + A_now A_anchor^-1 o (o the
+// anchor's pixel offsets, A the track's deformation since its surface began, which the tracker
+// estimates from the neighbouring tracks: TrackedFrame::deformation_estimated must be set). A
+// track whose surface changed since its anchor (its neighbours no longer determined A) gives no
+// candidate and is re-anchored at the frame's estimate. Measured: README "Photometric calibration
+// accuracy" (with the TRUE f and V it removes the tunnel's drift; with the back end's own f and V
+// it is judged together with the back end's observations following the surface,
+// OnlineCalibrationOptions::keyframes_follow_deformation).
 //
 // Under a co-located light a track's radiance changes with its distance to the lamp and the
 // lamp's power: given per-track factors (illumination_factor.hpp), the estimator removes that
@@ -96,14 +89,10 @@ struct ExposureEstimatorOptions {
   double min_sigma = 1e-3;             // floor of the robust scale (log units)
   double trust_width_grey = 8.0;       // width of the weight's fall-off outside the trusted grey range
   double min_grey_weight = 1e-3;       // its floor
-  // The patch follows the surface's local deformation since the anchor (see above); false: the
-  // fixed window at the tracked position (the default: measured worse on the accuracy table).
+  // The patch follows the surface's local deformation since the anchor (see above; the tracker's
+  // PhotometricTrackerOptions::estimate_deformation must be on); false: the fixed window at the
+  // tracked position.
   bool follow_deformation = false;
-  double neighbour_radius_px = 40.0;   // neighbours within this distance at the anchor ...
-  int max_neighbours = 12;             // ... the nearest this many of them
-  int min_neighbours = 4;              // inliers needed for a fit
-  double min_neighbour_spread_px = 6.0;  // rms spread of their offsets along the weaker axis
-  double max_area_change = 4.0;        // |det A| outside [1/this, this]: not determined
 };
 
 struct ExposureEstimate {
@@ -150,24 +139,18 @@ public:
   double grey_weight(double y) const;
 
 private:
-  struct Neighbour {
-    std::int64_t id = 0;
-    Eigen::Vector2d offset = Eigen::Vector2d::Zero();  // its position minus the track's, at the anchor
-  };
   struct Anchor {
     PatchSamples irradiance;  // G(I)/V, -1 where clipped
     PatchSamples weight;      // trust in G at each pixel's grey value (see above)
     double log_exposure = 0.0;
     double log_illumination = 0.0;  // log(P / d^2) when anchored (0 without a light model)
-    std::vector<Neighbour> neighbours;  // for the patch's deformation since (see above)
+    Eigen::Matrix2d deformation_inverse = Eigen::Matrix2d::Identity();  // A_anchor^-1 (see above)
+    std::int32_t surface = 0;           // the track's surface when anchored
   };
   // G(I)/V at the patch pixels position + A o (o the pixel offsets of the 9 x 9 grid), -1 where a
   // grey value is clipped; false when the patch does not fit in the image.
   bool irradiance_patch(const cv::Mat& intensity, const Eigen::Vector2d& position, const Eigen::Matrix2d& deformation,
                         PatchSamples& irradiance, PatchSamples& weight) const;
-  // A of the track at `index` of this frame from its anchor's neighbours (see above); nullopt
-  // when they do not determine it.
-  std::optional<Eigen::Matrix2d> deformation(const TrackedFrame& tracked, std::size_t index, const Anchor& anchor);
   // log of the ratio of the weighted patch irradiance sums over the pixels valid in both, and the
   // mean weight of those pixels; false when too few.
   bool log_irradiance_ratio(const PatchSamples& now, const PatchSamples& now_weight, const PatchSamples& anchor,
@@ -188,10 +171,6 @@ private:
   std::vector<std::pair<double, double>> sorted_;  // (value, weight), for the weighted medians
   std::vector<PatchSamples> irradiance_, weight_;  // of tracked.tracks, this frame
   PatchSamples warped_irradiance_, warped_weight_;  // a patch sampled under its deformation
-  std::unordered_map<std::int64_t, std::size_t> track_index_;  // id -> index in tracked.tracks, this frame
-  std::vector<std::pair<double, std::size_t>> nearest_;        // (squared distance, index), anchoring
-  std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> pairs_;  // (offset at anchor, now), fitting
-  std::vector<double> fit_residuals_;
   std::vector<char> irradiance_valid_;
   bool model_changed_ = false;
   bool illumination_modelled_ = false;  // the last frame came with light factors

@@ -11,6 +11,15 @@
 // (a 3 x 3 grid with a 3 px pitch) and their squared image gradient, for the gradient weight
 // w = mu / (mu + |grad I|^2) of the paper's Eq. 2-5. Grey values are in 0..255 units (16-bit
 // frames scaled), so G = f^-1 applies as a 256-level table does; clipped pixels are stored as -1.
+//
+// The back end takes a track's k-th pixel in every keyframe for one surface point of constant
+// radiance. With the fixed grid that is not so: as the camera approaches, the grid covers less of
+// the surface around the tracked corner, whose surroundings differ from it, and the same darkening
+// that made the exposure estimate drift (track_deformation.hpp) enters the fitted f and V. With
+// `follow_surfaces` the grid follows the surface instead: pixel k is sampled (bilinearly, from
+// the frame) at position + A o_k, A the track's deformation since its surface began
+// (TrackObservation::deformation), and the gradient there; the observation keeps A and the surface
+// number, and the back end takes each (track, surface) as its own points.
 
 #include <array>
 #include <cstdint>
@@ -35,9 +44,15 @@ struct KeyframeObservation {
   Eigen::Vector2d position = Eigen::Vector2d::Zero();  // track centre, pixels
   std::array<float, kBackendPixels> grey{};            // 0..255, -1 where clipped
   std::array<float, kBackendPixels> gradient_sq{};     // |grad I|^2, grey levels^2 per px^2
+  // The grid's deformation (pixel k lies at position + A o_k) and the track's surface (see above);
+  // I and 0 for the fixed grid.
+  Eigen::Matrix2f deformation = Eigen::Matrix2f::Identity();
+  std::int32_t surface = 0;
   // log(P / d^2) of the light at the track (illumination_factor.hpp); 0 without a light model
   // (every factor 1), NaN where the distance is unknown (the observation is left out).
   float log_illumination = 0.0f;
+  // The image position of back-end pixel k.
+  Eigen::Vector2d pixel(int k) const;
 };
 
 struct PhotometricKeyframe {
@@ -55,10 +70,13 @@ struct PhotometricKeyframe {
 // the keyframe starts with (reported or estimated). black_level / saturation_level: fractions of
 // full scale beyond which a pixel counts as clipped.
 // `log_illumination`, when given, holds each track's log(P / d^2) (aligned with tracked.tracks).
+// `follow_surfaces`: the grid follows each track's deformation (see above; needs
+// tracked.deformation_estimated and tracked.intensity).
 PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, double timestamp_s, double exposure,
                                               bool exposure_known, double black_level = 0.03,
                                               double saturation_level = 0.97,
-                                              const std::vector<double>* log_illumination = nullptr);
+                                              const std::vector<double>* log_illumination = nullptr,
+                                              bool follow_surfaces = false);
 
 struct KeyframeSelectionOptions {
   double min_interval_s = 0.05;             // at most 20 keyframes a second

@@ -140,6 +140,10 @@ struct OnlineCalibrationOptions {
   // each estimate's own range is used; without either (or with a power-sweep response, known
   // over all levels) every grey level is trusted.
   std::optional<std::pair<double, double>> initial_grey_range;
+  // The back end's keyframe observations follow the surface (keyframe_selection.hpp), with the
+  // tracks' deformation the tracker estimates (track_deformation.hpp; shared with the exposure
+  // estimator's follow_deformation). Measured: README "Photometric calibration accuracy".
+  bool keyframes_follow_deformation = false;
 };
 
 class OnlinePhotometricCalibration {

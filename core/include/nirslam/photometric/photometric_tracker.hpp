@@ -29,6 +29,7 @@
 
 #include "nirslam/common/helper_thread.hpp"
 #include "nirslam/image/frame.hpp"
+#include "nirslam/photometric/track_deformation.hpp"
 
 namespace nirslam {
 
@@ -65,6 +66,11 @@ struct PhotometricTrackerOptions {
   double max_brightness_gain = 5.0;
   double black_level = 0.03;               // for the frame's black / saturated fractions
   double saturation_level = 0.97;
+  // Each track's deformation since birth from its neighbours (track_deformation.hpp), for
+  // observations that follow the surface (ExposureEstimatorOptions::follow_deformation,
+  // OnlineCalibrationOptions::keyframes_follow_deformation set it). Off: every A is I.
+  bool estimate_deformation = false;
+  TrackDeformationOptions deformation;
 };
 
 // One patch tracked between two images.
@@ -95,6 +101,11 @@ struct TrackObservation {
   PatchSamples samples;            // fraction of full scale, at `position`
   double brightness_gain = 1.0;    // from the previous frame (1 for new tracks)
   PatchSamples reference;          // the patch when the track was detected (drift check)
+  // With TrackedFrame::deformation_estimated (track_deformation.hpp): the 2 x 2 map A the image
+  // has undergone around the track since its `surface` began (a pixel offset o then is A o now);
+  // a track's observations of different surfaces are not of the same surface points.
+  Eigen::Matrix2d deformation = Eigen::Matrix2d::Identity();
+  std::int32_t surface = 0;
 };
 
 struct TrackedFrame {
@@ -111,6 +122,7 @@ struct TrackedFrame {
   cv::Mat intensity;
   int lost_tracks = 0;                // of the previous frame's tracks
   int new_tracks = 0;
+  bool deformation_estimated = false; // the tracks' deformation and surface are set
 };
 
 class PhotometricTracker {
@@ -136,6 +148,7 @@ private:
   // The tracks are followed on two threads (each track alone, so the result is the same);
   // copies share the helper, which serves one caller at a time.
   std::vector<std::optional<TrackObservation>> followed_;
+  TrackDeformation deformation_;
   std::shared_ptr<HelperThread> helper_ = std::make_shared<HelperThread>();
 };
 

@@ -54,8 +54,9 @@ struct InitializerOptions {
   bool parallel_hypotheses = true;
   // The direction search (all off by default; OdometryOptions::init_direction_search turns them
   // on together, with frames_after_snap = 8). Measured on the 12-run start-offset set of the
-  // room / tunnel starts (README, "Odometry benchmark"): 1.52 % of the path, 5 of 12 under 1 %,
-  // against 2.11 % and 3 without; the initialiser then takes ~50 s instead of ~2.4 s.
+  // room / tunnel starts (README, "Odometry benchmark"): 1.18 % of the path, 6 of 12 under 1 %,
+  // against 2.11 % and 3 without; each initialisation then costs 8-16 s more (bench, rooms and
+  // tunnels), and the vehicle sequences initialise 1-3 s late.
   //
   // Residuals free of a brightness offset per patch (see point_terms in the .cpp: the lamp's
   // 1 / d^2 and beam change every patch's brightness by its own amount).

@@ -101,8 +101,8 @@ struct OdometryOptions {
   int init_max_frames = 60;             // restart from a new reference frame after this many
   // The initialiser's translation-direction search (InitializerOptions: patch-offset-free
   // residuals, 19 held-direction candidates on 3 cones of 15 degrees, joint refinement over 8
-  // frames after the snap from swept depths, the mean energy in view decides). Off: ~50 s per
-  // initialisation instead of ~2.4 s (README, "Odometry benchmark").
+  // frames after the snap from swept depths, the mean energy in view decides). Off: 8-16 s more
+  // per initialisation, too slow for 20 frames/s (README, "Odometry benchmark").
   bool init_direction_search = false;
 };
 

@@ -71,6 +71,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   odometry.read<double>("beam_exponent", pipeline.odometry.beam_exponent, 0.0, 100.0);
   odometry.read_flag("surface_normals", pipeline.odometry.lamp_surface_normals);
   odometry.read_flag("lamp_factor_derivatives", pipeline.odometry.lamp_factor_derivatives);
+  odometry.read_flag("init_direction_search", pipeline.odometry.init_direction_search);
   odometry.reject_unknown_keys();
 
   YamlMapReader calibration(root["calibration"], file, "calibration");

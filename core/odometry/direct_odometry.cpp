@@ -118,6 +118,14 @@ struct DirectOdometry::Impl {
     io.min_parallax_px = options.init_min_parallax_px;
     io.affine_a_prior = 0.1 * a_prior(false);
     io.affine_b_prior = 0.1 * b_prior(false);
+    if (options.init_direction_search) {
+      io.patch_offset_invariant = true;
+      io.joint_refinement = true;
+      io.direction_rings = 3;
+      io.direction_ring_step_deg = 15.0;
+      io.select_by_mean_visible_energy = true;
+      io.frames_after_snap = 8;
+    }
     initializer = std::make_unique<CoarseInitializer>(cameras, io);
     init_frames.clear();
     init_T_frame_first.clear();
@@ -477,7 +485,7 @@ struct DirectOdometry::Impl {
       restart("initialising: first frame");
       return result;
     }
-    const InitializerState state = initializer->add_frame(*pyramid, exposure);
+    const InitializerState state = initializer->add_frame(pyramid, exposure);
     result.residual_rms = initializer->rms();
     result.affine_a = initializer->affine_a();
     result.affine_b = initializer->affine_b();
@@ -502,6 +510,11 @@ struct DirectOdometry::Impl {
         return result;
       }
     }
+
+    // The frames since the snap as the kept hypothesis has them at the end (jointly refined).
+    for (const auto& [index, T] : initializer->post_snap_poses())
+      if (index >= 0 && static_cast<std::size_t>(index) < init_T_frame_first.size())
+        init_T_frame_first[static_cast<std::size_t>(index)] = T;
 
     // Two keyframes: the first frame with the initialiser's points, and this one.
     const SE3 T_first_world = segment_origin.inverse();

@@ -1,6 +1,8 @@
 // The initialiser's hypotheses after its snap run on two threads (InitializerOptions::
 // parallel_hypotheses): each is aligned on its own copy of the initialiser, so the result must be
-// the same, to the last bit, as aligning them one after the other.
+// the same, to the last bit, as aligning them one after the other; with the translation-direction
+// search on too (held-direction candidates, the joint refinement over the frames since the snap
+// on both threads), which also hands the refined poses of those frames to the odometry.
 
 #include <memory>
 #include <vector>
@@ -15,7 +17,7 @@
 namespace nirslam::odometry {
 namespace {
 
-TEST(CoarseInitializer, ParallelHypothesesGiveTheSameResultAsSequential) {
+void expect_parallel_equals_sequential(const InitializerOptions& options) {
   // The hand-held tunnel at 20 W (a bench sequence), at half size to keep the test short; the
   // parallax threshold is for a 640-wide image, so the snap comes as at full size.
   SimulatorOptions o;
@@ -30,8 +32,7 @@ TEST(CoarseInitializer, ParallelHypothesesGiveTheSameResultAsSequential) {
   const LevelCamera base{camera->intrinsics()[0], camera->intrinsics()[1], camera->intrinsics()[2],
                          camera->intrinsics()[3], o.width, o.height};
   const auto cameras = make_level_cameras(base, usable_levels(o.width, o.height, 5, 40));
-  InitializerOptions parallel_options;
-  parallel_options.points = 800;
+  InitializerOptions parallel_options = options;
   parallel_options.parallel_hypotheses = true;
   InitializerOptions sequential_options = parallel_options;
   sequential_options.parallel_hypotheses = false;
@@ -51,8 +52,8 @@ TEST(CoarseInitializer, ParallelHypothesesGiveTheSameResultAsSequential) {
       first = false;
       continue;
     }
-    const InitializerState a = parallel.add_frame(*pyramid, 1.0);
-    const InitializerState b = sequential.add_frame(*pyramid, 1.0);
+    const InitializerState a = parallel.add_frame(pyramid, 1.0);
+    const InitializerState b = sequential.add_frame(pyramid, 1.0);
     ASSERT_EQ(a, b);
     ASSERT_EQ(parallel.snapped(), sequential.snapped());
     frames_after_snap += parallel.snapped() ? 1 : 0;
@@ -70,6 +71,38 @@ TEST(CoarseInitializer, ParallelHypothesesGiveTheSameResultAsSequential) {
   // and the initialiser finished.
   EXPECT_GT(frames_after_snap, 1);
   EXPECT_EQ(parallel.state(), InitializerState::Succeeded);
+  // The frames since the snap, as the kept hypothesis has them: kept only for the joint
+  // refinement, the last one is the handed-over pose.
+  const auto poses = parallel.post_snap_poses();
+  if (!options.joint_refinement) {
+    EXPECT_TRUE(poses.empty());
+    return;
+  }
+  ASSERT_EQ(static_cast<int>(poses.size()), frames_after_snap - 1);  // the snap frame is not kept
+  EXPECT_EQ(poses.back().first, parallel.frames_tracked());
+  EXPECT_EQ((poses.back().second.log() - parallel.T_frame_first().log()).norm(), 0.0);
+  const auto sequential_poses = sequential.post_snap_poses();
+  ASSERT_EQ(sequential_poses.size(), poses.size());
+  for (std::size_t i = 0; i < poses.size(); ++i)
+    EXPECT_EQ((poses[i].second.log() - sequential_poses[i].second.log()).norm(), 0.0) << "frame " << poses[i].first;
+}
+
+TEST(CoarseInitializer, ParallelHypothesesGiveTheSameResultAsSequential) {
+  InitializerOptions options;
+  options.points = 800;
+  expect_parallel_equals_sequential(options);
+}
+
+TEST(CoarseInitializer, DirectionSearchGivesTheSameResultOnTwoThreads) {
+  // Fewer points and one cone of candidates (6 + the 4 starts), to stay short.
+  InitializerOptions options;
+  options.points = 300;
+  options.patch_offset_invariant = true;
+  options.joint_refinement = true;
+  options.direction_rings = 1;
+  options.select_by_mean_visible_energy = true;
+  options.frames_after_snap = 5;
+  expect_parallel_equals_sequential(options);
 }
 
 }  // namespace

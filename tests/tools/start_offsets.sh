@@ -10,11 +10,13 @@
 #              sequences are not there, `nirslam bench` simulates them into it first (about 2 min)
 #   OUT        a folder for the runs and results.txt
 #   options    passed to every `nirslam run` (default: --mode odometry)
-# NIRSLAM=path/to/nirslam picks the binary (default: build/nirslam).
+# NIRSLAM=path/to/nirslam picks the binary (default: build/nirslam); NIRSLAM_CONFIG=file.yaml is
+# passed as `nirslam --config file.yaml run ...` (e.g. config/init-direction-search.yaml).
 set -euo pipefail
-[ $# -ge 2 ] || { sed -n '2,14p' "$0"; exit 2; }
+[ $# -ge 2 ] || { sed -n '2,15p' "$0"; exit 2; }
 sequences=$(realpath -m "$1"); out=$(realpath -m "$2"); shift 2
 nirslam=$(realpath "${NIRSLAM:-build/nirslam}")
+config=${NIRSLAM_CONFIG:+$(realpath "$NIRSLAM_CONFIG")}
 run_options=("$@"); [ ${#run_options[@]} -gt 0 ] || run_options=(--mode odometry)
 names=(Room_20 Room_50 Room_100 Tunnel_100)
 
@@ -51,7 +53,7 @@ done
 one() {  # one "NAME@FIRST|FOLDER": runs it and prints "NAME@FIRST ATE PATH PERCENT"
   local label=${1%%|*} folder=${1#*|} dir
   dir="$out/runs/${label/@/_from_}"; mkdir -p "$dir"
-  "$nirslam" run "$folder" --out "$dir" "${run_options[@]}" > "$dir/run.log" 2>&1 || { echo "$label FAILED (see $dir/run.log)"; return; }
+  "$nirslam" ${config:+--config "$config"} run "$folder" --out "$dir" "${run_options[@]}" > "$dir/run.log" 2>&1 || { echo "$label FAILED (see $dir/run.log)"; return; }
   "$nirslam" eval "$dir/trajectory.txt" "$folder/groundtruth.txt" --align sim3 > "$dir/eval.txt" 2>&1 || { echo "$label EVAL FAILED"; return; }
   local ate path
   ate=$(awk '$1 == "ATE" {print $3}' "$dir/eval.txt")
@@ -59,7 +61,7 @@ one() {  # one "NAME@FIRST|FOLDER": runs it and prints "NAME@FIRST ATE PATH PERC
   awk -v l="$label" -v a="$ate" -v p="$path" 'BEGIN {printf "%-14s ATE %.4f m  path %.2f m  %.2f %%\n", l, a, p, 100 * a / p}'
 }
 export -f one
-export out nirslam
+export out nirslam config
 export RUN_OPTIONS="${run_options[*]}"
 # Word-split the options again inside the child shells (they contain no spaces of their own).
 printf '%s\n' "${runs[@]}" | xargs -P2 -I{} bash -c 'run_options=($RUN_OPTIONS); one "$1"' _ {} | sort > "$out/results.txt"

@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -51,6 +52,34 @@ struct InitializerOptions {
   // more), each on its own copy of the initialiser; the result is the same as one after the
   // other (false), about twice as fast on an idle two-core machine.
   bool parallel_hypotheses = true;
+  // The direction search (all off by default; OdometryOptions::init_direction_search turns them
+  // on together, with frames_after_snap = 8). Measured on the 12-run start-offset set of the
+  // room / tunnel starts (README, "Odometry benchmark"): 1.18 % of the path, 6 of 12 under 1 %,
+  // against 2.11 % and 3 without; each initialisation then costs 8-16 s more (bench, rooms and
+  // tunnels), and the vehicle sequences initialise 1-3 s late.
+  //
+  // Residuals free of a brightness offset per patch (see point_terms in the .cpp: the lamp's
+  // 1 / d^2 and beam change every patch's brightness by its own amount).
+  bool patch_offset_invariant = false;
+  // At the hand-over, every hypothesis is refined once more jointly over all the frames aligned
+  // since the snap: one pose and affine brightness per frame, one shared inverse depth per point
+  // (a small photometric bundle adjustment with the first frame as host), from depths searched
+  // along their rays in all those frames (depth_sweep_steps inverse depths in (0, 4], the mean
+  // being 1; 0: no search).
+  bool joint_refinement = false;
+  int depth_sweep_steps = 160;
+  // Candidates whose camera-centre direction is held, on `direction_rings` cones of
+  // direction_ring_step_deg around the pre-snap direction (6 per cone), while they are aligned
+  // frame by frame; the joint refinement releases them. Without this, no hypothesis comes near
+  // the true direction on the rooms (all 4 end 30-40 degrees off): the frame-by-frame alignment
+  // settles into the basin it starts in, and the true one is narrow until the depths converge.
+  int direction_rings = 0;
+  double direction_ring_step_deg = 15.0;
+  // After the joint refinement, compare the hypotheses by their mean energy over the
+  // point-frames in view, lowest wins (no margin). With the total energy (points out of view
+  // at the outlier cost) the true motion, which moves more points out of the view, lost on
+  // most starts; with this mean it won on every start measured.
+  bool select_by_mean_visible_energy = false;
   double affine_a_prior = 1.0;
   double affine_b_prior = 1e-2;
 };
@@ -69,7 +98,8 @@ public:
 
   void set_first(std::shared_ptr<const ImagePyramid> pyramid, double exposure);
   // Aligns one more frame; Succeeded once enough parallax was kept for frames_after_snap frames.
-  InitializerState add_frame(const ImagePyramid& frame, double exposure);
+  // The frames after the snap are kept (shared) for the joint refinement at the hand-over.
+  InitializerState add_frame(std::shared_ptr<const ImagePyramid> frame, double exposure);
   // Ends early with the current estimate (a static camera): depths stay near 1.
   void force_success() { state_ = InitializerState::Succeeded; }
 
@@ -84,6 +114,9 @@ public:
   double inlier_fraction() const;  // of the points, in the last frame
   const std::vector<InitialPoint>& points() const { return points_; }
   const std::shared_ptr<const ImagePyramid>& first_pyramid() const { return first_; }
+  // T_frame_first of the frames aligned since the snap, by their index in add_frame's count
+  // (frames_tracked() at the time), as the kept hypothesis has them (jointly refined at the end).
+  std::vector<std::pair<int, SE3>> post_snap_poses() const;
   double first_exposure() const { return first_exposure_; }
 
 private:
@@ -94,8 +127,8 @@ private:
   void update_neighbour_means();
   // Coarse-to-fine alignment of `frame` from the current state, every level.
   void optimize_levels(const ImagePyramid& frame, double exposure);
-  // Mean inverse depth 1 (the translation scales along).
-  void normalise_gauge();
+  // Mean inverse depth 1 (the translation scales along); returns the factor the translation got.
+  double normalise_gauge();
   // Rms pixel shift at level 0 caused by the translation alone, for a 640-wide image.
   double translational_parallax() const;
   // After the snap: every hypothesis aligned to `frame` from its own last state; the one with
@@ -105,13 +138,35 @@ private:
   // or this one): each from its own state, so the order does not matter.
   void align_hypothesis_range(CoarseInitializer& worker, std::size_t begin, std::size_t end, const ImagePyramid& frame,
                               double exposure);
+  struct FrameState {
+    SE3 T;  // T_frame_first
+    double a = 0.0, b = 0.0;
+  };
   struct Hypothesis {
     SE3 T;
     double a = 0.0, b = 0.0;
     std::vector<InitialPoint> points;
     double energy = 0.0;
+    std::vector<FrameState> track;  // one per kept post-snap frame (the last is T, a, b)
+    // The camera centre's direction (first frame) held while the frames since the snap are
+    // aligned one by one; zero: free.
+    Eigen::Vector3d hold_direction = Eigen::Vector3d::Zero();
   };
-  Hypothesis current_state() const { return {T_frame_first_, a_, b_, points_, 0.0}; }
+  Hypothesis current_state() const { return {T_frame_first_, a_, b_, points_, 0.0, {}, Eigen::Vector3d::Zero()}; }
+  // The joint energy over the kept post-snap frames (`states`, one each) of the points with
+  // inverse depths `rho` on `level`, regulariser and affine priors included; with `linearize`
+  // the joint normal equations in the J*_ scratch (frame blocks of 8: xi, a, b).
+  double evaluate_joint(int level, const std::vector<FrameState>& states, const std::vector<double>& rho,
+                        bool linearize);
+  void optimize_joint_level(int level, std::vector<FrameState>& states, int iterations);
+  // Refines `h` (loaded into this initialiser) over all kept frames, coarse to fine; sets its
+  // energy to the joint one on level 0.
+  void refine_joint(Hypothesis& h);
+  void sweep_depths(const std::vector<FrameState>& states, int level);
+  void refine_hypothesis_range(CoarseInitializer& worker, std::size_t begin, std::size_t end);
+  // Runs `range(worker, begin, end)` over the hypotheses, on two threads when allowed.
+  template <class Range>
+  void for_hypotheses(Range range);
   void load(const Hypothesis& h);
 
   std::vector<LevelCamera> cameras_;
@@ -131,6 +186,15 @@ private:
   double rms_ = 0.0;
   double parallax_ = 0.0;
   std::vector<Hypothesis> hypotheses_;  // after the snap
+  // The frames aligned since the snap, for the joint refinement.
+  std::vector<std::shared_ptr<const ImagePyramid>> kept_frames_;
+  std::vector<double> kept_exposures_;
+  std::vector<int> kept_indices_;
+  Eigen::Vector3d hold_direction_ = Eigen::Vector3d::Zero();  // of the hypothesis being aligned
+  // Of the last evaluate_joint: energy and count of the point-frames in view.
+  double visible_energy_ = 0.0;
+  int visible_count_ = 0;
+  std::size_t kept_hypothesis_ = 0;  // the one loaded on the last frame
 
   // Scratch of evaluate(..., linearize = true).
   Eigen::Matrix<double, 8, 8> H_ff_;
@@ -139,6 +203,10 @@ private:
   std::vector<double> H_pp_;
   std::vector<double> b_p_;
   std::vector<int> inliers_;
+  // Scratch of evaluate_joint(..., linearize = true): 8 rows per kept frame.
+  Eigen::MatrixXd JH_ff_;
+  Eigen::VectorXd Jb_f_;
+  Eigen::MatrixXd JH_fp_;  // 8 x frames rows, one column per point
 };
 
 }  // namespace nirslam::odometry

@@ -99,6 +99,11 @@ struct OdometryOptions {
   double init_min_parallax_px = 6.0;    // rms translational flow at level 0 for a 640-wide image
   int init_static_frames = 30;          // initialise without parallax after this many frames
   int init_max_frames = 60;             // restart from a new reference frame after this many
+  // The initialiser's translation-direction search (InitializerOptions: patch-offset-free
+  // residuals, 19 held-direction candidates on 3 cones of 15 degrees, joint refinement over 8
+  // frames after the snap from swept depths, the mean energy in view decides). Off: 8-16 s more
+  // per initialisation, too slow for 20 frames/s (README, "Odometry benchmark").
+  bool init_direction_search = false;
 };
 
 struct OdometryFrame {

@@ -620,7 +620,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   // Scaled by the part of the grey scale above the observed range: where the data reach up to
   // saturation they fix the scale themselves and the prior must not bend their curve.
   const double curvature_weight =
-      any_fixed ? options_.log_curvature_weight * nobs * std::max(0.0, 255.0 - step.grey_high) / 255.0 : 0.0;
+      any_fixed ? (lit_problem_ ? options_.lit_log_curvature_weight : options_.log_curvature_weight) * nobs * std::max(0.0, 255.0 - step.grey_high) / 255.0 : 0.0;
   constexpr int kCurvatureLevels = 31;
   // Only from a little below the top of the observed range on: inside it the data fix the shape
   // (and log G is curved there by nature: log X ~ log I near black for every curve).

@@ -186,7 +186,13 @@ struct PhotometricBackendOptions {
   // basis then reaches 255 with any bend, and the smoothest continuation of log G is the
   // documented choice among the curves the data cannot tell apart. Used only when some keyframe
   // exposure is known (held); without, the gamma is free too and stays with the basis and prior.
-  double log_curvature_weight = 3.0;  // measured: room/log irradiance scale 0.98 (3.2 with 0); README table
+  // Measured on the 16-row constant-radiance table (README), rows meeting response / vignette /
+  // exposure median: weight 3: 3 / 6 / 7, 30: 5 / 6 / 6, 100: 6 / 7 / 8, 300: 5 / 5 / 7.
+  double log_curvature_weight = 100.0;
+  // The same when the window's observations carry the co-located light's factor: 100 there made
+  // the `illuminated` bench worse on 7 of 12 (parking 20 / 50 / 100 W 0.24 / 0.057 / 0.047 ->
+  // 0.71 / 0.19 / 0.40 m; README "Illuminator correction"), so the lamp-lit problem keeps 3.
+  double lit_log_curvature_weight = 3.0;
   double min_exposure_ratio = 1.15;   // max/min exposure in the window below which f is not estimated
   double min_radius_span = 0.1;       // V is estimated when min_points / 2 points span this range of radii
   bool vignette_monotonic = true;     // every accepted V falls (weakly) from the centre to the rim

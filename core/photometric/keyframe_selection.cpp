@@ -18,14 +18,10 @@ Eigen::Vector2d KeyframeObservation::pixel(int k) const {
 
 namespace {
 
-// Bilinear sample of a CV_32FC1 image; false outside the interpolation domain.
+// bilinear_sample where it is defined; false outside.
 bool bilinear(const cv::Mat& image, double x, double y, float& value) {
   if (!(x >= 0.0 && y >= 0.0 && x < image.cols - 1 && y < image.rows - 1)) return false;
-  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
-  const float* row0 = image.ptr<float>(y0) + x0;
-  const float* row1 = image.ptr<float>(y0 + 1) + x0;
-  value = (1.0f - fy) * ((1.0f - fx) * row0[0] + fx * row0[1]) + fy * ((1.0f - fx) * row1[0] + fx * row1[1]);
+  value = bilinear_sample(image, x, y);
   return true;
 }
 

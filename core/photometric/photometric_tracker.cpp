@@ -12,17 +12,6 @@ namespace nirslam {
 
 namespace {
 
-// Bilinear sample of a CV_32FC1 image; the caller guarantees 0 <= x < cols - 1, 0 <= y < rows - 1.
-inline float bilinear(const cv::Mat& image, double x, double y) {
-  const int x0 = static_cast<int>(x);
-  const int y0 = static_cast<int>(y);
-  const float fx = static_cast<float>(x - x0);
-  const float fy = static_cast<float>(y - y0);
-  const float* row0 = image.ptr<float>(y0) + x0;
-  const float* row1 = image.ptr<float>(y0 + 1) + x0;
-  return (1.0f - fy) * ((1.0f - fx) * row0[0] + fx * row0[1]) + fy * ((1.0f - fx) * row1[0] + fx * row1[1]);
-}
-
 // Whether a square of half-size `radius` around p can be sampled bilinearly.
 inline bool fits(const cv::Mat& image, const Eigen::Vector2d& p, int radius) {
   return std::isfinite(p.x()) && std::isfinite(p.y()) && p.x() - radius >= 0.0 && p.y() - radius >= 0.0 &&
@@ -55,7 +44,7 @@ bool sample_patch(const cv::Mat& image, const Eigen::Vector2d& position, PatchSa
   for (int i = 0; i < kPatchSide; ++i)
     for (int j = 0; j < kPatchSide; ++j)
       samples[i * kPatchSide + j] =
-          bilinear(image, position.x() + (j - kPatchRadius), position.y() + (i - kPatchRadius));
+          bilinear_sample(image, position.x() + (j - kPatchRadius), position.y() + (i - kPatchRadius));
   return true;
 }
 
@@ -77,7 +66,7 @@ std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::
     if (!fits(image0, p0, kPatchRadius + 1)) return std::nullopt;
     for (int i = 0; i < kTemplateSide; ++i)
       for (int j = 0; j < kTemplateSide; ++j)
-        templ(i, j) = bilinear(image0, p0.x() + (j - kPatchRadius - 1), p0.y() + (i - kPatchRadius - 1));
+        templ(i, j) = bilinear_sample(image0, p0.x() + (j - kPatchRadius - 1), p0.y() + (i - kPatchRadius - 1));
     // Template and its central-difference gradient, fixed for the level (inverse-compositional
     // style: the Jacobian does not need the warped image's gradient).
     Eigen::Matrix2d structure = Eigen::Matrix2d::Zero();

@@ -91,6 +91,18 @@ std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::
                                       const Eigen::Vector2d& from, const Eigen::Vector2d& guess,
                                       const PhotometricTrackerOptions& options);
 
+// Bilinear sample of a CV_32FC1 image; the caller guarantees 0 <= x < cols - 1, 0 <= y < rows - 1.
+// Inline: it runs per pixel in the tracker's patch loops.
+inline float bilinear_sample(const cv::Mat& image, double x, double y) {
+  const int x0 = static_cast<int>(x);
+  const int y0 = static_cast<int>(y);
+  const float fx = static_cast<float>(x - x0);
+  const float fy = static_cast<float>(y - y0);
+  const float* row0 = image.ptr<float>(y0) + x0;
+  const float* row1 = image.ptr<float>(y0 + 1) + x0;
+  return (1.0f - fy) * ((1.0f - fx) * row0[0] + fx * row0[1]) + fy * ((1.0f - fx) * row1[0] + fx * row1[1]);
+}
+
 // Samples the patch centred at `position` (bilinear). false when it does not fit in the image.
 bool sample_patch(const cv::Mat& image, const Eigen::Vector2d& position, PatchSamples& samples);
 

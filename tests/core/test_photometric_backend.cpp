@@ -160,9 +160,10 @@ TEST(PhotometricBackend, RecoversResponseAndVignetteWithKnownExposures) {
   ASSERT_TRUE(step.ok);
   EXPECT_TRUE(step.response_estimated);
   EXPECT_TRUE(step.vignette_estimated);
-  // Exact data up to grey 250: 1.62 grey levels at worst (0.5 with log_curvature_weight 3). The
-  // straightness prior on log G above the observed range still pulls a little at the top, where
-  // the log curve really bends; the price of its gain on data that stop mid-grey (README table).
+  // Exact data up to grey 250: 1.62 grey levels at worst (under the 0.5 this test asserted with
+  // log_curvature_weight 3). The straightness prior on log G above the observed range still pulls
+  // a little at the top, where the log curve really bends; the price of its gain on data that stop
+  // mid-grey (README table).
   EXPECT_LT(inverse_response_max_error(backend.response(), truth), 2.0);
   for (double r = 0.0; r <= 1.0; r += 0.1) EXPECT_NEAR(backend.vignette()(r), vignette(r), 2e-3) << "r " << r;
   EXPECT_TRUE(backend.response().is_monotonic());

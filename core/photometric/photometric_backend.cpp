@@ -326,14 +326,72 @@ void PhotometricBackend::initialise_radiances(State& state) const {
     for (int i = p.begin; i < p.end; ++i) {
       const Observation& o = observations_[static_cast<std::size_t>(i)];
       const double u = state.u[static_cast<std::size_t>(i)];
-      const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
+      const double slope = f_slope(state.c, u);
+      const double k = slope / (2.0 * std::max(u, 1e-6));
       const double G = 255.0 * u * u;
       const double eV = state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * o.illumination;
-      num += o.gradient_weight * k * k * eV * G;
-      den += o.gradient_weight * k * k * eV * eV;
+      const double w = o.gradient_weight * model_noise_weight(u, slope);
+      num += w * k * k * eV * G;
+      den += w * k * k * eV * eV;
     }
     state.radiance[pi] = den > 0.0 ? num / den : 0.0;
   }
+}
+
+double PhotometricBackend::model_noise_weight(double u, double slope) const {
+  if (!lit_problem_ || !(model_sigma_log_ > 0.0)) return 1.0;
+  const double grey_per_log_irradiance = 127.5 * u * slope;  // dI/d log X = X f'(X), I in grey levels
+  const double ratio = grey_per_log_irradiance * model_sigma_log_ / model_noise_grey_;
+  return model_noise_norm_ / (1.0 + ratio * ratio);
+}
+
+bool PhotometricBackend::estimate_model_noise(const State& state, double& sigma_log, double& noise_grey) const {
+  struct Sample {
+    double x, abs_s;  // (dI/d log X)^2, |s|
+  };
+  std::vector<Sample> samples;
+  samples.reserve(observations_.size());
+  for (std::size_t pi = 0; pi < points_.size(); ++pi)
+    for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
+      const Observation& o = observations_[static_cast<std::size_t>(i)];
+      const double u = state.u[static_cast<std::size_t>(i)];
+      const double slope = f_slope(state.c, u);
+      const double k = slope / (2.0 * std::max(u, 1e-6));
+      const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) *
+                                            o.illumination * state.radiance[pi]) * k;
+      const double g = 127.5 * u * slope;
+      samples.push_back({g * g, std::abs(s)});
+    }
+  constexpr int kBins = 8;
+  if (samples.size() < 20 * kBins) return false;
+  std::sort(samples.begin(), samples.end(), [](const Sample& a, const Sample& b) { return a.x < b.x; });
+  // Robust variance per bin, then var = A + B x by least squares over the bins (A, B >= 0).
+  Eigen::Matrix2d N = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
+  std::vector<double> abs_s;
+  for (int bin = 0; bin < kBins; ++bin) {
+    const std::size_t begin = samples.size() * static_cast<std::size_t>(bin) / kBins;
+    const std::size_t end = samples.size() * static_cast<std::size_t>(bin + 1) / kBins;
+    abs_s.clear();
+    double x = 0.0;
+    for (std::size_t i = begin; i < end; ++i) abs_s.push_back(samples[i].abs_s), x += samples[i].x;
+    x /= static_cast<double>(end - begin);
+    const double sd = 1.4826 * median_in_place(abs_s);
+    const Eigen::Vector2d row(1.0, x);
+    N += row * row.transpose();
+    rhs += row * (sd * sd);
+  }
+  Eigen::Vector2d ab = N.ldlt().solve(rhs);
+  if (!ab.allFinite()) return false;
+  if (ab[1] <= 0.0) return false;  // no growth with dI/d log X: the image noise alone
+  if (ab[0] < 0.25) {                // refit the slope with the noise at its floor (0.5 grey levels)
+    ab[0] = 0.25;
+    ab[1] = (rhs[1] - N(1, 0) * ab[0]) / N(1, 1);
+    if (!(ab[1] > 0.0)) return false;
+  }
+  noise_grey = std::sqrt(ab[0]);
+  sigma_log = std::sqrt(ab[1]);
+  return true;
 }
 
 double PhotometricBackend::data_cost(const State& state, double delta) const {
@@ -345,8 +403,10 @@ double PhotometricBackend::data_cost(const State& state, double delta) const {
     for (int i = p.begin; i < p.end; ++i) {
       const Observation& o = observations_[static_cast<std::size_t>(i)];
       const double u = state.u[static_cast<std::size_t>(i)];
-      const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
-      const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * o.illumination * L) * k;
+      const double slope = f_slope(state.c, u);
+      const double k = slope / (2.0 * std::max(u, 1e-6));
+      const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * o.illumination * L) * k *
+                       std::sqrt(model_noise_weight(u, slope));
       cost += o.gradient_weight * huber_cost(s, delta);
     }
   }
@@ -558,6 +618,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   const double monotonic_weight = options_.monotonic_penalty_weight * nobs;
   const MonotonicGrid& grid = monotonic_grid();
 
+
   State state;
   state.c = response_.coefficients();
   state.v = vignette_.v;
@@ -575,7 +636,28 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   }
   state.exposure = exposure;
   update_u(state);
+  model_noise_norm_ = 1.0;
+  model_sigma_log_ = 0.0;
+  model_noise_grey_ = options_.lit_image_noise_grey;
   initialise_radiances(state);
+  if (lit_problem_ && !observations_.empty()) {
+    const double sigma = options_.lit_log_illumination_sigma;
+    if (sigma > 0.0) {
+      model_sigma_log_ = sigma;
+    } else if (sigma < 0.0) {  // estimated from the residuals
+      double sigma_log = 0.0, noise_grey = 1.0;
+      if (estimate_model_noise(state, sigma_log, noise_grey)) {
+        model_sigma_log_ = sigma_log;
+        model_noise_grey_ = noise_grey;
+      }
+    }
+    if (model_sigma_log_ > 0.0) {
+      double sum = 0.0;
+      for (std::size_t i = 0; i < observations_.size(); ++i) sum += model_noise_weight(state.u[i], f_slope(state.c, state.u[i]));
+      if (sum > 0.0) model_noise_norm_ = static_cast<double>(observations_.size()) / sum;
+      initialise_radiances(state);
+    }
+  }
 
   // Huber width from the robust spread of the scaled residuals at the start.
   double delta = 1.0;
@@ -586,9 +668,11 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
       for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
         const Observation& o = observations_[static_cast<std::size_t>(i)];
         const double u = state.u[static_cast<std::size_t>(i)];
-        const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
+        const double slope = f_slope(state.c, u);
+        const double k = slope / (2.0 * std::max(u, 1e-6));
         abs_s.push_back(std::abs((255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] *
-                                                      vignette_at(state.v, o.radius) * o.illumination * state.radiance[pi]) * k));
+                                                      vignette_at(state.v, o.radius) * o.illumination * state.radiance[pi]) * k) *
+                        std::sqrt(model_noise_weight(u, slope)));
       }
     delta = options_.huber_k * std::max(1.4826 * median_in_place(abs_s), 0.5);
   }
@@ -718,8 +802,9 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           const double eV = e * V * o.illumination;  // the light's factor a rides with e V
           const double r = G / eV - L;
           const double eVk = eV * k;
-          const double s = r * eVk;
-          const double w = o.gradient_weight * eVk * eVk * huber_weight(s, delta);
+          const double noise_weight = model_noise_weight(u, slope);
+          const double s = r * eVk * std::sqrt(noise_weight);
+          const double w = o.gradient_weight * noise_weight * eVk * eVk * huber_weight(s, delta);
           Eigen::Matrix<double, 7, 1> jg;
           if (step.response_estimated)
             jg.head<4>() = (-255.0 * 2.0 * u / (slope * eV)) * h;
@@ -966,10 +1051,11 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
       for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
         const Observation& o = observations_[static_cast<std::size_t>(i)];
         const double u = state.u[static_cast<std::size_t>(i)];
-        const double k = f_slope(state.c, u) / (2.0 * std::max(u, 1e-6));
+        const double slope = f_slope(state.c, u);
+        const double k = slope / (2.0 * std::max(u, 1e-6));
         const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] *
                                               vignette_at(state.v, o.radius) * o.illumination * state.radiance[pi]) * k;
-        if (std::abs(s) <= delta) squared += s * s, ++inliers;
+        if (std::abs(s) * std::sqrt(model_noise_weight(u, slope)) <= delta) squared += s * s, ++inliers;
       }
     step.residual_rms = inliers ? std::sqrt(squared / static_cast<double>(inliers)) : 0.0;
   }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <thread>
 
@@ -11,9 +12,15 @@
 #include "nirslam/odometry/pixel_selector.hpp"
 
 namespace nirslam::odometry {
+namespace {
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+}  // namespace
 
 CoarseInitializer::CoarseInitializer(std::vector<LevelCamera> cameras, const InitializerOptions& options)
-    : cameras_(std::move(cameras)), options_(options) {}
+    : cameras_(std::move(cameras)), options_(options),
+      offset_free_(options.patch_offset_invariant && !options.plain_pre_snap) {}
 
 void CoarseInitializer::set_first(std::shared_ptr<const ImagePyramid> pyramid, double exposure) {
   first_ = std::move(pyramid);
@@ -48,10 +55,14 @@ void CoarseInitializer::set_first(std::shared_ptr<const ImagePyramid> pyramid, d
   b_ = 0.0;
   snapped_ = false;
   hypotheses_.clear();
+  pending_.clear();
   kept_frames_.clear();
   kept_exposures_.clear();
   kept_indices_.clear();
   kept_hypothesis_ = 0;
+  early_hand_over_ = false;
+  timings_ = {};
+  offset_free_ = options_.patch_offset_invariant && !options_.plain_pre_snap;
   frames_ = 0;
   frames_since_snap_ = 0;
   state_ = points_.size() >= 50 ? InitializerState::Tracking : InitializerState::Failed;
@@ -182,13 +193,19 @@ double CoarseInitializer::evaluate(int level, const ImagePyramid& frame, double 
     b_p_.assign(n, 0.0);
   }
   inliers_.assign(n, 0);
+  visible_energy_ = 0.0;
+  visible_count_ = 0;
   double energy = 0.0;
   double data_energy = 0.0;
   int data_count = 0;
   PointTerms terms;
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector2d base = (points_[i].pixel.array() + 0.5) * scale - 0.5;
-    const bool ok = point_terms(cam, first, image, R, t, s, b, base, rho[i], k, linearize, options_.patch_offset_invariant, terms);
+    const bool ok = point_terms(cam, first, image, R, t, s, b, base, rho[i], k, linearize, offset_free_, terms);
+    if (ok) {
+      visible_energy_ += std::min(terms.energy, cutoff);
+      ++visible_count_;
+    }
     if (!ok || terms.energy > cutoff) {
       energy += cutoff;
       // Still regularised, so an occluded or out-of-view point follows its neighbours.
@@ -462,6 +479,8 @@ void CoarseInitializer::refine_joint(Hypothesis& h) {
   // Points leaving the view count as outliers in `energy`: a motion that keeps more points in
   // view would look better for that alone. The mean over the point-frames in view does not.
   h.energy = options_.select_by_mean_visible_energy ? visible_energy_ / std::max(1, visible_count_) : energy;
+  h.rms = rms_;
+  h.inlier_fraction = inlier_fraction();
 }
 
 double CoarseInitializer::optimize_level(int level, const ImagePyramid& frame, double exposure, int iterations) {
@@ -572,6 +591,7 @@ void CoarseInitializer::align_hypothesis_range(CoarseInitializer& worker, std::s
     Hypothesis& h = hypotheses_[k];
     worker.load(h);
     worker.hold_direction_ = h.hold_direction;
+    worker.offset_free_ = h.offset_free;
     worker.optimize_levels(frame, exposure);
     worker.hold_direction_ = Eigen::Vector3d::Zero();
     const double gauge = worker.normalise_gauge();
@@ -580,9 +600,12 @@ void CoarseInitializer::align_hypothesis_range(CoarseInitializer& worker, std::s
     worker.update_neighbour_means();
     auto track = std::move(h.track);
     const Eigen::Vector3d hold_direction = h.hold_direction;
+    const bool search = h.search;
     h = worker.current_state();
     h.hold_direction = hold_direction;
+    h.search = search;
     h.energy = worker.evaluate(0, frame, exposure, worker.T_frame_first_, worker.a_, worker.b_, rho, false);
+    h.visible_mean = worker.visible_energy_ / std::max(1, worker.visible_count_);
     // The earlier frames' translations follow the gauge (the depths were scaled by 1 / gauge).
     for (auto& st : track) st.T = SE3(st.T.unit_quaternion(), st.T.translation() * gauge);
     track.push_back({h.T, h.a, h.b});
@@ -595,12 +618,12 @@ void CoarseInitializer::refine_hypothesis_range(CoarseInitializer& worker, std::
 }
 
 template <class Range>
-void CoarseInitializer::for_hypotheses(Range range) {
+void CoarseInitializer::for_hypotheses(Range range, std::size_t begin) {
   const std::size_t n = hypotheses_.size();
-  if (options_.parallel_hypotheses && n > 1) {
+  if (options_.parallel_hypotheses && n > begin + 1) {
     // The second half on another thread with its own copy (state and scratch; hypotheses_ is
     // only written per index, each index by one thread), the first half here.
-    const std::size_t half = (n + 1) / 2;
+    const std::size_t half = begin + (n - begin + 1) / 2;
     CoarseInitializer copy(cameras_, options_);
     copy.first_ = first_;
     copy.first_exposure_ = first_exposure_;
@@ -610,46 +633,129 @@ void CoarseInitializer::for_hypotheses(Range range) {
     copy.kept_frames_ = kept_frames_;
     copy.kept_exposures_ = kept_exposures_;
     std::thread worker([&] { range(copy, half, n); });
-    range(*this, 0, half);
+    range(*this, begin, half);
     worker.join();
   } else {
-    range(*this, 0, n);
+    range(*this, begin, n);
   }
 }
 
-void CoarseInitializer::align_hypotheses(const ImagePyramid& frame, double exposure) {
+std::size_t CoarseInitializer::plain_choice() const {
+  // The pre-snap hypothesis (0) is kept unless another start explains the frame clearly better:
+  // over a small baseline the energies of different structures are close.
+  std::size_t best = 0;
+  for (std::size_t k = 1; k < hypotheses_.size(); ++k) {
+    if (hypotheses_[k].search) continue;
+    if (hypotheses_[k].energy < (1.0 - options_.hypothesis_margin) * hypotheses_[0].energy &&
+        (best == 0 || hypotheses_[k].energy < hypotheses_[best].energy))
+      best = k;
+  }
+  return best;
+}
+
+void CoarseInitializer::prune_candidates() {
+  std::vector<std::size_t> candidates;
+  for (std::size_t k = 0; k < hypotheses_.size(); ++k)
+    if (hypotheses_[k].candidate()) candidates.push_back(k);
+  const auto keep = static_cast<std::size_t>(std::max(0, options_.candidates_kept));
+  if (candidates.size() <= keep) return;
+  // Stable, so equal energies keep their cone order (the same on one thread or two).
+  std::stable_sort(candidates.begin(), candidates.end(), [&](std::size_t x, std::size_t y) {
+    return hypotheses_[x].visible_mean < hypotheses_[y].visible_mean;
+  });
+  std::vector<char> dropped(hypotheses_.size(), 0);
+  for (std::size_t j = keep; j < candidates.size(); ++j) dropped[candidates[j]] = 1;
+  std::vector<Hypothesis> kept;
+  kept.reserve(hypotheses_.size() - (candidates.size() - keep));
+  for (std::size_t k = 0; k < hypotheses_.size(); ++k)
+    if (!dropped[k]) kept.push_back(std::move(hypotheses_[k]));
+  hypotheses_ = std::move(kept);
+}
+
+bool CoarseInitializer::align_hypotheses(const ImagePyramid& frame, double exposure) {
+  const auto align_start = std::chrono::steady_clock::now();
   for_hypotheses([&](CoarseInitializer& worker, std::size_t begin, std::size_t end) {
     align_hypothesis_range(worker, begin, end, frame, exposure);
   });
+
+  bool hand_over_now = false;
+  std::size_t best = plain_choice();
+  const bool search = options_.direction_rings > 0;
+  const bool gate = search && options_.plain_hand_over_frames > 0;
+  if (gate && frames_since_snap_ == options_.plain_hand_over_frames) {
+    if (best != 0) {
+      // Another start is clearly better than the pre-snap one (vehicle motion): the plain
+      // path's result, now; the candidates were never aligned.
+      hand_over_now = true;
+      pending_.clear();
+    } else {
+      // The search goes on: the candidates catch up on the frames kept since the snap (the
+      // same alignments as from the snap on, since each hypothesis is aligned on its own).
+      const std::size_t first_candidate = hypotheses_.size();
+      first_search_ = first_candidate;
+      for (auto& h : pending_) hypotheses_.push_back(std::move(h));
+      pending_.clear();
+      for (std::size_t f = 0; f < kept_frames_.size(); ++f) {
+        for_hypotheses(
+            [&](CoarseInitializer& worker, std::size_t begin, std::size_t end) {
+              align_hypothesis_range(worker, begin, end, *kept_frames_[f], kept_exposures_[f]);
+            },
+            first_candidate);
+        if (options_.candidates_kept > 0 && static_cast<int>(f) + 1 == options_.prune_after_frames) prune_candidates();
+      }
+    }
+  } else if (search && options_.candidates_kept > 0 && frames_since_snap_ == options_.prune_after_frames &&
+             (!gate || options_.prune_after_frames > options_.plain_hand_over_frames)) {
+    prune_candidates();
+  }
+  timings_.align_s += seconds_since(align_start);
   // On the hand-over frame, the joint refinement over every frame since the snap.
   const bool last = frames_since_snap_ + 1 > options_.frames_after_snap;
-  const bool joint = last && options_.joint_refinement && !kept_frames_.empty();
-  if (joint)
+  const bool joint = !hand_over_now && last && options_.joint_refinement && !kept_frames_.empty();
+  if (joint) {
+    const auto joint_start = std::chrono::steady_clock::now();
+    // With plain_starts, only the search set (after the plain starts) is refined and compared.
+    const std::size_t first_refined = options_.plain_starts ? first_search_ : 0;
     for_hypotheses([&](CoarseInitializer& worker, std::size_t begin, std::size_t end) {
       refine_hypothesis_range(worker, begin, end);
-    });
-  // The pre-snap hypothesis (0) is kept unless another explains the frame clearly better: over
-  // a small baseline the energies of different structures are close. Compared over all kept
-  // frames on their mean energy in view, the lowest wins outright.
-  std::size_t best = 0;
-  const double margin = joint && options_.select_by_mean_visible_energy ? 0.0 : options_.hypothesis_margin;
-  for (std::size_t k = 1; k < hypotheses_.size(); ++k)
-    if (hypotheses_[k].energy < (1.0 - margin) * hypotheses_[0].energy &&
-        (best == 0 || hypotheses_[k].energy < hypotheses_[best].energy))
-      best = k;
+    }, first_refined);
+    timings_.joint_s += seconds_since(joint_start);
+    if (options_.select_by_mean_visible_energy) {
+      // Compared over all kept frames on their mean energy in view, the lowest wins outright,
+      // among those that pass the odometry's checks; the plain choice when none does.
+      std::size_t chosen = hypotheses_.size();
+      for (std::size_t k = first_refined; k < hypotheses_.size(); ++k) {
+        const Hypothesis& h = hypotheses_[k];
+        if (h.inlier_fraction < options_.hand_over_min_inlier_fraction || h.rms > options_.hand_over_max_rms ||
+            std::abs(h.a) > options_.hand_over_max_abs_affine_a)
+          continue;
+        if (chosen == hypotheses_.size() || h.energy < hypotheses_[chosen].energy) chosen = k;
+      }
+      best = chosen < hypotheses_.size() ? chosen : plain_choice();
+    } else {
+      best = plain_choice();
+    }
+  } else if (!search) {
+    best = plain_choice();
+  }
   kept_hypothesis_ = best;
+  early_hand_over_ = hand_over_now;
   load(hypotheses_[best]);
-  // rms and inliers of the kept one.
+  // The kept one's rms and inliers, on the residuals it was aligned with (refined: offset-free).
+  offset_free_ = hypotheses_[best].offset_free;
   std::vector<double> rho(points_.size());
   for (std::size_t i = 0; i < points_.size(); ++i) rho[i] = points_[i].inverse_depth;
   update_neighbour_means();
   evaluate(0, frame, exposure, T_frame_first_, a_, b_, rho, false);
   for (std::size_t i = 0; i < points_.size(); ++i) points_[i].good = inliers_[i] != 0;
+  return hand_over_now;
 }
 
 std::vector<std::pair<int, SE3>> CoarseInitializer::post_snap_poses() const {
   std::vector<std::pair<int, SE3>> poses;
-  if (kept_hypothesis_ >= hypotheses_.size()) return poses;
+  // Handed over by the plain path early: its frames were aligned one by one, as without the
+  // search (the odometry keeps the poses it recorded then).
+  if (kept_hypothesis_ >= hypotheses_.size() || early_hand_over_) return poses;
   const auto& track = hypotheses_[kept_hypothesis_].track;
   for (std::size_t f = 0; f < track.size() && f < kept_indices_.size(); ++f)
     poses.emplace_back(kept_indices_[f], track[f].T);
@@ -659,15 +765,18 @@ std::vector<std::pair<int, SE3>> CoarseInitializer::post_snap_poses() const {
 InitializerState CoarseInitializer::add_frame(std::shared_ptr<const ImagePyramid> frame, double exposure) {
   if (state_ != InitializerState::Tracking) return state_;
   ++frames_;
+  bool early_hand_over = false;
   if (snapped_) {
     if (options_.joint_refinement) {
       kept_frames_.push_back(frame);
       kept_exposures_.push_back(exposure);
       kept_indices_.push_back(frames_);
     }
-    align_hypotheses(*frame, exposure);
+    if (align_hypotheses(*frame, exposure)) early_hand_over = true;
   } else {
+    const auto start = std::chrono::steady_clock::now();
     optimize_levels(*frame, exposure);
+    timings_.pre_snap_s += seconds_since(start);
     parallax_ = translational_parallax();
     if (parallax_ > options_.min_parallax_px) {
       snapped_ = true;
@@ -679,7 +788,23 @@ InitializerState CoarseInitializer::add_frame(std::shared_ptr<const ImagePyramid
         for (const double sign : {-1.0, 1.0})
           hypotheses_.push_back({SE3(q, sign * t.norm() * Eigen::Vector3d::UnitZ()), a_, b_, points_, 0.0, {}, Eigen::Vector3d::Zero()});
       }
-      if (options_.direction_rings > 0) {
+      for (auto& h : hypotheses_) h.offset_free = offset_free_;
+      const bool search = options_.direction_rings > 0;
+      auto& search_set = search && options_.plain_hand_over_frames > 0 ? pending_ : hypotheses_;
+      first_search_ = hypotheses_.size();
+      if (search && options_.plain_starts) {
+        // The starts on plain residuals (the path without the search: its choice is the current
+        // state until the hand-over, and the fallback), and the same starts offset-free, in the
+        // search set.
+        for (auto& h : hypotheses_) {
+          Hypothesis copy = h;
+          copy.search = true;
+          copy.offset_free = options_.patch_offset_invariant;
+          h.offset_free = false;
+          search_set.push_back(std::move(copy));
+        }
+      }
+      if (search) {
         // Candidates with the camera centre's direction held on cones around the pre-snap one
         // (its rotation kept) while their depths converge, released in the joint refinement.
         const Eigen::Matrix3d R0 = T_frame_first_.rotation_matrix();
@@ -696,7 +821,10 @@ InitializerState CoarseInitializer::add_frame(std::shared_ptr<const ImagePyramid
             const double phi = (az + 0.5 * (ring % 2)) * 2.0 * M_PI / az_count;
             const Eigen::Vector3d u = std::cos(theta) * c0 + std::sin(theta) * (std::cos(phi) * e1 + std::sin(phi) * e2);
             Hypothesis h{SE3(T_frame_first_.unit_quaternion(), -(R0 * u) * norm), a_, b_, points_, 0.0, {}, u};
-            hypotheses_.push_back(h);
+            h.search = true;
+            h.offset_free = options_.patch_offset_invariant;
+            // With the plain path's gate they wait until it has decided (align_hypotheses).
+            search_set.push_back(std::move(h));
           }
         }
       }
@@ -706,7 +834,8 @@ InitializerState CoarseInitializer::add_frame(std::shared_ptr<const ImagePyramid
     }
   }
   parallax_ = translational_parallax();
-  if (snapped_ && ++frames_since_snap_ > options_.frames_after_snap) state_ = InitializerState::Succeeded;
+  if (snapped_ && (++frames_since_snap_ > options_.frames_after_snap || early_hand_over))
+    state_ = InitializerState::Succeeded;
   return state_;
 }
 

@@ -6,6 +6,8 @@
 #include <map>
 #include <stdexcept>
 
+#include <cstdio>
+
 #include "nirslam/odometry/coarse_initializer.hpp"
 #include "nirslam/odometry/coarse_tracker.hpp"
 #include "nirslam/common/helper_thread.hpp"
@@ -125,6 +127,17 @@ struct DirectOdometry::Impl {
       io.direction_ring_step_deg = 15.0;
       io.select_by_mean_visible_energy = true;
       io.frames_after_snap = 8;
+      // The plain path (four starts on plain residuals) decides at its own hand-over frame
+      // whether the search runs at all (vehicle motion: no), is the current state until the
+      // search's hand-over, and is its fallback when no searched hypothesis passes the checks
+      // below, so the search never restarts the initialiser (README, "Odometry benchmark").
+      io.plain_starts = true;
+      io.plain_hand_over_frames = 4;
+      io.hand_over_min_inlier_fraction = options.min_tracking_inlier_fraction;
+      io.hand_over_max_rms = options.max_tracking_rms;
+      io.hand_over_max_abs_affine_a = 1.0;
+      io.prune_after_frames = options.init_search_prune_after_frames;
+      io.candidates_kept = options.init_search_candidates_kept;
     }
     initializer = std::make_unique<CoarseInitializer>(cameras, io);
     init_frames.clear();
@@ -579,7 +592,11 @@ struct DirectOdometry::Impl {
     new_segment_pending = false;
     result.is_keyframe = true;
     result.T_world_cam = newest.state.T_cam_world.inverse();
-    result.message = "initialised with " + std::to_string(window->point_count()) + " points";
+    const InitializerTimings& t = initializer->timings();
+    char timing[160];
+    std::snprintf(timing, sizeof timing, " (initialiser: %zu hypotheses at the hand-over; %.2f s before the snap, %.2f s aligning, %.2f s joint refinement)",
+                  initializer->hypothesis_count(), t.pre_snap_s, t.align_s, t.joint_s);
+    result.message = "initialised with " + std::to_string(window->point_count()) + " points" + timing;
     return result;
   }
 

@@ -207,6 +207,8 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     input.illuminator_power_w = frame.illuminator_power_w;
     result.timings.undistort_ms = ms_since(start);
     OdometryResult odometry = odometry_->process(input);
+    // The initialiser's hand-over, with the wall time of its phases (README, "Speed").
+    if (odometry.message.rfind("initialised with", 0) == 0) spdlog::info("odometry: {}", odometry.message);
     frames_tracking_ = odometry.status == TrackingStatus::Tracking ? frames_tracking_ + 1 : 0;
     result.timings.odometry_ms = odometry.timings.total_ms;
     result.timings.mapping_ms = odometry.timings.mapping_ms;

@@ -338,6 +338,15 @@ void PhotometricBackend::initialise_radiances(State& state) const {
   }
 }
 
+double PhotometricBackend::scaled_residual(const State& state, std::size_t point, std::size_t i, double& slope) const {
+  const Observation& o = observations_[i];
+  const double u = state.u[i];
+  slope = f_slope(state.c, u);
+  const double k = slope / (2.0 * std::max(u, 1e-6));
+  return (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * o.illumination *
+                              state.radiance[point]) * k;
+}
+
 double PhotometricBackend::model_noise_weight(double u, double slope) const {
   if (!lit_problem_ || !(model_sigma_log_ > 0.0)) return 1.0;
   const double grey_per_log_irradiance = 127.5 * u * slope;  // dI/d log X = X f'(X), I in grey levels
@@ -353,13 +362,9 @@ bool PhotometricBackend::estimate_model_noise(const State& state, double& sigma_
   samples.reserve(observations_.size());
   for (std::size_t pi = 0; pi < points_.size(); ++pi)
     for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
-      const Observation& o = observations_[static_cast<std::size_t>(i)];
-      const double u = state.u[static_cast<std::size_t>(i)];
-      const double slope = f_slope(state.c, u);
-      const double k = slope / (2.0 * std::max(u, 1e-6));
-      const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) *
-                                            o.illumination * state.radiance[pi]) * k;
-      const double g = 127.5 * u * slope;
+      double slope = 0.0;
+      const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope);
+      const double g = 127.5 * state.u[static_cast<std::size_t>(i)] * slope;
       samples.push_back({g * g, std::abs(s)});
     }
   constexpr int kBins = 8;
@@ -398,16 +403,11 @@ double PhotometricBackend::data_cost(const State& state, double delta) const {
   // Scaled residual s = (G - e V L) k (grey levels), k = dI/dG; exposures pre-divided by e_scale.
   double cost = 0.0;
   for (std::size_t pi = 0; pi < points_.size(); ++pi) {
-    const Point& p = points_[pi];
-    const double L = state.radiance[pi];
-    for (int i = p.begin; i < p.end; ++i) {
-      const Observation& o = observations_[static_cast<std::size_t>(i)];
-      const double u = state.u[static_cast<std::size_t>(i)];
-      const double slope = f_slope(state.c, u);
-      const double k = slope / (2.0 * std::max(u, 1e-6));
-      const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * o.illumination * L) * k *
-                       std::sqrt(model_noise_weight(u, slope));
-      cost += o.gradient_weight * huber_cost(s, delta);
+    for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
+      double slope = 0.0;
+      const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope) *
+                       std::sqrt(model_noise_weight(state.u[static_cast<std::size_t>(i)], slope));
+      cost += observations_[static_cast<std::size_t>(i)].gradient_weight * huber_cost(s, delta);
     }
   }
   return cost;
@@ -666,13 +666,9 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     abs_s.reserve(observations_.size());
     for (std::size_t pi = 0; pi < points_.size(); ++pi)
       for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
-        const Observation& o = observations_[static_cast<std::size_t>(i)];
-        const double u = state.u[static_cast<std::size_t>(i)];
-        const double slope = f_slope(state.c, u);
-        const double k = slope / (2.0 * std::max(u, 1e-6));
-        abs_s.push_back(std::abs((255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] *
-                                                      vignette_at(state.v, o.radius) * o.illumination * state.radiance[pi]) * k) *
-                        std::sqrt(model_noise_weight(u, slope)));
+        double slope = 0.0;
+        const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope);
+        abs_s.push_back(std::abs(s) * std::sqrt(model_noise_weight(state.u[static_cast<std::size_t>(i)], slope)));
       }
     delta = options_.huber_k * std::max(1.4826 * median_in_place(abs_s), 0.5);
   }
@@ -1049,13 +1045,9 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     std::size_t inliers = 0;
     for (std::size_t pi = 0; pi < points_.size(); ++pi)
       for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
-        const Observation& o = observations_[static_cast<std::size_t>(i)];
-        const double u = state.u[static_cast<std::size_t>(i)];
-        const double slope = f_slope(state.c, u);
-        const double k = slope / (2.0 * std::max(u, 1e-6));
-        const double s = (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] *
-                                              vignette_at(state.v, o.radius) * o.illumination * state.radiance[pi]) * k;
-        if (std::abs(s) * std::sqrt(model_noise_weight(u, slope)) <= delta) squared += s * s, ++inliers;
+        double slope = 0.0;
+        const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope);
+        if (std::abs(s) * std::sqrt(model_noise_weight(state.u[static_cast<std::size_t>(i)], slope)) <= delta) squared += s * s, ++inliers;
       }
     step.residual_rms = inliers ? std::sqrt(squared / static_cast<double>(inliers)) : 0.0;
   }

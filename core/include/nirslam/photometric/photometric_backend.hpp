@@ -286,6 +286,9 @@ private:
   void build_problem(const std::vector<int>& window);
   void update_u(State& state) const;
   double data_cost(const State& state, double delta) const;
+  // The scaled residual s = (G - e V a L) k of observation i of point `point` in grey levels
+  // (k = dI/dG; exposures pre-divided by e_scale), and f'(u) through `slope`.
+  double scaled_residual(const State& state, std::size_t point, std::size_t i, double& slope) const;
   // The lit observations' weight from the uncertain factor a (lit_log_illumination_sigma): the
   // inverse variance of the grey-level residual at u with f'(u) = slope, times model_noise_norm_.
   double model_noise_weight(double u, double slope) const;

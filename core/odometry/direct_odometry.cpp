@@ -3,10 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <stdexcept>
-
-#include <cstdio>
 
 #include "nirslam/odometry/coarse_initializer.hpp"
 #include "nirslam/odometry/coarse_tracker.hpp"

@@ -38,7 +38,8 @@ cmake --build build-asan -j"$jobs" --target nirslam_core_tests nirslam_worker_te
 # so do the simulated wall approaches of the lamp factor (100 s together here; the lamp's
 # residuals and Jacobians have unit tests that stay), the lamp offset found from rendered
 # frames (the estimator's own tests on synthetic points stay), the initialiser's two-thread
-# check on a simulated sequence (7 minutes here; it runs in Release) and the corrected frames
+# check on a simulated sequence (7 minutes here; it runs in Release), the direction search's
+# two-thread, gate and fallback checks (8-62 s each here; they run in Release) and the corrected frames
 # following the estimate over 400 frames (3 minutes; Release and ThreadSanitizer run it). Also
 # left to the Release run, to keep CI under 30 minutes: unit tests that took 10-35 s each here
 # on whole images or real data (the Canon exposure stack, the drift check of the KLT tracker,
@@ -47,7 +48,7 @@ cmake --build build-asan -j"$jobs" --target nirslam_core_tests nirslam_worker_te
 # problem); the window optimisation's energy test stays.
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
   ctest --test-dir build-asan --output-on-failure -j"$jobs" \
-    -E 'OdometrySequence|PhotometricAccuracy|SlamPipelineSequence|ExposureEstimator[.](ConstantRadiance|CoLocated)|WorkerOnSimulator[.]PipelineViews|PhotometricOnlineCalibration[.]BackgroundBackEnd|IlluminatorWall|FromRendered|ParallelHypothesesGiveTheSameResult|CorrectionFollowsTheEstimate|RealCanonStack|DriftCheckDropsTracks|CoarseAlignmentRecoversKnownMotion|TileCullingFindsTheSameSurfaces|BeamFromHalo[.]FromTheSimulatorsHaloFactor|UndistortedImageMatchesTheIdealPinholeImage|SixteenBitImagesKeepTheirRange|MarginalisationPriorGivesTheFullProblemsStep'
+    -E 'OdometrySequence|PhotometricAccuracy|SlamPipelineSequence|ExposureEstimator[.](ConstantRadiance|CoLocated)|WorkerOnSimulator[.]PipelineViews|PhotometricOnlineCalibration[.]BackgroundBackEnd|IlluminatorWall|FromRendered|ParallelHypothesesGiveTheSameResult|DirectionSearchGivesTheSameResultOnTwoThreads|SearchFallsBackToThePlainPath|PlainGateHandsOverThePath|CorrectionFollowsTheEstimate|RealCanonStack|DriftCheckDropsTracks|CoarseAlignmentRecoversKnownMotion|TileCullingFindsTheSameSurfaces|BeamFromHalo[.]FromTheSimulatorsHaloFactor|UndistortedImageMatchesTheIdealPinholeImage|SixteenBitImagesKeepTheirRange|MarginalisationPriorGivesTheFullProblemsStep'
 
 section "ThreadSanitizer: worker tests"
 configure build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DNIRSLAM_SANITIZE=thread -DNIRSLAM_BUILD_UI=OFF \

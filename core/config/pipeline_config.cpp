@@ -43,6 +43,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   }
   stages.read<std::size_t>("exposure_history", pipeline.exposure_history, 2, 1'000'000);
   stages.read<double>("corrected_frame_exponent", pipeline.corrected_frame_exponent, 0.1, 1.0);
+  stages.read<double>("raw_frame_exponent", pipeline.raw_frame_exponent, 0.1, 1.0);
   // The lamp's distances handed to the calibration in 'illuminated' mode (light_distance_map.hpp).
   stages.read<double>("lamp_distance_max_log_spread", pipeline.light_distances.max_log_spread, 0.0, 10.0);
   stages.read_flag("lamp_distance_plane_fit", pipeline.light_distances.fit_inverse_depth_plane);

@@ -83,6 +83,8 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
   if (runs_calibration(options_.mode)) {
     options_.odometry.beam_exponent = 0.0;
     options_.odometry.brightness_exponent = options_.corrected_frame_exponent;
+  } else {
+    options_.odometry.brightness_exponent = options_.raw_frame_exponent;
   }
   if (runs_calibration(options_.mode))
     calibration_ = std::make_unique<OnlinePhotometricCalibration>(options_.calibration);

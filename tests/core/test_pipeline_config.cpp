@@ -40,6 +40,7 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_TRUE(config.worker.pipeline.calibration.background_thread);
   EXPECT_TRUE(config.worker.pipeline.calibration.run_backend);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 0.5);
+  EXPECT_NEAR(config.worker.pipeline.raw_frame_exponent, 1.0 / 2.2, 1e-4);
   EXPECT_TRUE(config.worker.pipeline.odometry.lamp_factor_derivatives);
 }
 
@@ -52,7 +53,7 @@ TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
 
 TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   const PipelineConfig config = load_pipeline_config(write_yaml(
-      "stages", "pipeline:\n  mode: odometry\n  corrected_frame_exponent: 1.0\n  lamp_distance_max_log_spread: 0.1\n"
+      "stages", "pipeline:\n  mode: odometry\n  corrected_frame_exponent: 1.0\n  raw_frame_exponent: 0.5\n  lamp_distance_max_log_spread: 0.1\n"
                 "  lamp_distance_plane_fit: false\n  lamp_cosine_to_calibration: true\nodometry:\n  points_per_frame: 1500\n"
                 "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n"
                 "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"));
@@ -64,6 +65,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_EQ(config.worker.pipeline.calibration.iterations_per_keyframe, 2);
   EXPECT_FALSE(config.worker.pipeline.calibration.run_backend);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 1.0);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.raw_frame_exponent, 0.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.light_distances.max_log_spread, 0.1);
   EXPECT_FALSE(config.worker.pipeline.light_distances.fit_inverse_depth_plane);
   EXPECT_TRUE(config.worker.pipeline.lamp_cosine_to_calibration);

@@ -70,11 +70,14 @@ TEST(SlamPipeline, ModesChooseCalibrationAndTheLampFactor) {
   options.mode = PipelineMode::Illuminated;
   options.calibration.background_thread = false;
   EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().beam_exponent, 0.0);
-  // Corrected frames reach the odometry encoded with the pipeline's exponent, raw ones as they are.
+  // Corrected frames reach the odometry encoded with the pipeline's exponent; raw ones are taken
+  // as gamma-encoded, so the lamp's factor reaches them raised to the raw frames' exponent.
   options.corrected_frame_exponent = 0.4;
   EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().brightness_exponent, 0.4);
   options.mode = PipelineMode::OdometryIlluminated;
-  EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().brightness_exponent, 1.0);
+  EXPECT_NEAR(SlamPipeline(options, pinhole(64, 48)).odometry()->options().brightness_exponent, 1.0 / 2.2, 1e-12);
+  options.raw_frame_exponent = 0.6;
+  EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().brightness_exponent, 0.6);
 }
 
 TEST(SlamPipeline, QualityModeRunsNoStage) {

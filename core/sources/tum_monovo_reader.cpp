@@ -61,6 +61,40 @@ std::vector<TimesEntry> read_times_file(const fs::path& file) {
   return entries;
 }
 
+std::unordered_map<std::string, double> read_frame_powers(const fs::path& file) {
+  std::ifstream in(file);
+  if (!in) throw InputError(file, "cannot open frames file");
+  std::unordered_map<std::string, double> powers;
+  std::optional<std::size_t> file_column, power_column;
+  std::size_t columns = 0;
+  int number = 0;
+  for (std::string text; std::getline(in, text);) {
+    ++number;
+    if (trim(text).empty() || trim(text).front() == '#') continue;
+    const std::vector<std::string_view> fields = split_fields(text);
+    if (columns == 0) {  // the header
+      columns = fields.size();
+      for (std::size_t c = 0; c < fields.size(); ++c) {
+        if (fields[c] == "file") file_column = c;
+        if (fields[c] == "illuminator_power_w") power_column = c;
+      }
+      if (!file_column || !power_column) return powers;
+      continue;
+    }
+    if (fields.size() != columns)
+      throw InputError(file, number, "expected " + std::to_string(columns) + " fields as the header has, got " +
+                                         std::to_string(fields.size()));
+    const std::string_view power_text = fields[*power_column];
+    const std::optional<double> power = parse_double(power_text);
+    if (!power || !(*power >= 0.0))
+      throw InputError(file, number, "illuminator_power_w '" + std::string(power_text) +
+                                         "' is not a non-negative number of watts");
+    powers[fs::path(std::string(fields[*file_column])).filename().string()] = *power;
+  }
+  if (in.bad()) throw InputError(file, "read error");
+  return powers;
+}
+
 // ---------------------------------------------------------------------------------------------
 
 // The image members of a zip archive, in natural name order, read one at a time.
@@ -174,6 +208,18 @@ TumMonoVoReader::TumMonoVoReader(const fs::path& folder) : folder_(folder) {
                            " (times.txt lines pair with the images in name order)");
   }
 
+  // The lamp's power per frame, where the folder says it (the simulator's frames.csv): the
+  // illuminator modes use it, and a lamp that is on tells the odometry that the exposure alone
+  // does not explain the brightness.
+  powers_w_.assign(image_count, std::nullopt);
+  if (const fs::path frames_file = folder / "frames.csv"; fs::exists(frames_file)) {
+    const auto powers = read_frame_powers(frames_file);
+    for (std::size_t i = 0; i < image_count && !powers.empty(); ++i) {
+      const std::string image_name = archive_ ? archive_->name(i) : image_files_[i].filename().string();
+      if (const auto it = powers.find(fs::path(image_name).filename().string()); it != powers.end()) powers_w_[i] = it->second;
+    }
+  }
+
   calibration_ = read_optional_dso_camera(folder / "camera.txt");
   if (calibration_) {
     decoder_.expect_size(calibration_->input->width(), calibration_->input->height(),
@@ -207,8 +253,10 @@ std::optional<Frame> TumMonoVoReader::next() {
   GreyImageDecoder::Image decoded =
       archive_ ? decoder_.decode(archive_->read(index), archive_->member_path(index))
                : decoder_.read_file(image_files_[index]);
-  return make_sequence_frame(std::move(decoded), index, times_[index].timestamp_s, times_[index].exposure_ms,
-                             archive_ ? archive_->name(index) : image_files_[index].filename().string());
+  Frame frame = make_sequence_frame(std::move(decoded), index, times_[index].timestamp_s, times_[index].exposure_ms,
+                                    archive_ ? archive_->name(index) : image_files_[index].filename().string());
+  frame.illuminator_power_w = powers_w_[index];
+  return frame;
 }
 
 }  // namespace nirslam

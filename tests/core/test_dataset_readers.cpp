@@ -281,6 +281,30 @@ TEST_F(TumMonoVo, BadTimesLineNamesTheLine) {
   EXPECT_DOUBLE_EQ(*reader.next()->exposure_ms, 4.0);
 }
 
+TEST_F(TumMonoVo, IlluminatorPowerFromFramesCsv) {
+  make_sequence(3, CV_8UC1, false);
+  // Without frames.csv (a TUM dataset) the power is unknown.
+  EXPECT_FALSE(TumMonoVoReader(root_).next()->illuminator_power_w.has_value());
+  // The simulator's layout; a frame the file does not list keeps it unknown.
+  write_text(root_ / "frames.csv",
+             "index,file,timestamp_s,exposure_ms,gain,illuminator_power_w,mean_grey\n"
+             "0,images/00000.png,1000.0,5,1,20.0,0.4\n2,images/00002.png,1000.1,7,1,0,0.3\n");
+  TumMonoVoReader reader(root_);
+  EXPECT_DOUBLE_EQ(*reader.next()->illuminator_power_w, 20.0);
+  EXPECT_FALSE(reader.next()->illuminator_power_w.has_value());
+  EXPECT_DOUBLE_EQ(*reader.next()->illuminator_power_w, 0.0);
+  // A frames.csv of another kind (no power column) is not an error.
+  write_text(root_ / "frames.csv", "id,note\n0,anything\n");
+  EXPECT_FALSE(TumMonoVoReader(root_).next()->illuminator_power_w.has_value());
+  // A bad power or a short line names the file and line.
+  write_text(root_ / "frames.csv", "file,illuminator_power_w\nimages/00000.png,20\nimages/00001.png,-3\n");
+  const std::string message = input_error([&] { TumMonoVoReader bad(root_); });
+  EXPECT_CONTAINS(message, "frames.csv:3");
+  EXPECT_CONTAINS(message, "-3");
+  write_text(root_ / "frames.csv", "file,illuminator_power_w\nimages/00000.png\n");
+  EXPECT_CONTAINS(input_error([&] { TumMonoVoReader bad(root_); }), "frames.csv:2");
+}
+
 TEST_F(TumMonoVo, CountMismatchNamesBothCounts) {
   make_sequence(4, CV_8UC1, false);
   write_text(root_ / "times.txt", "00000 1000.0\n00001 1000.05\n00002 1000.1\n");

@@ -65,7 +65,8 @@ struct OdometryOptions {
   // Brightness priors: energy weights pulling a and b of each keyframe to 0 (the first keyframe
   // of a segment is fixed). Without an exposure the prior is weak compared with the data (whose
   // Hessian in a is ~1e7-1e8 per keyframe pair) but keeps the brightness gauge from drifting;
-  // the tracker uses a tenth of these.
+  // the tracker uses a tenth of these. A frame lit by a lamp the odometry does not model
+  // (illuminator_power_w > 0 without illuminator_correction) counts as without an exposure.
   double affine_a_prior_known_exposure = 1e10;
   double affine_b_prior_known_exposure = 1e6;
   double affine_a_prior_free = 1e5;
@@ -122,7 +123,9 @@ struct OdometryFrame {
   // between host h and target t then uses e_t / e_h, affine a, b kept near 0 by a strong prior.
   // When absent: plain DSO, affine brightness free (weak prior).
   std::optional<double> exposure;
-  std::optional<double> illuminator_power_w;  // with illuminator_correction: multiplies the exposure
+  // With illuminator_correction: multiplies the exposure. Without it, a lamp that is on (> 0)
+  // leaves the affine brightness free as if the exposure were absent (OdometryOptions priors).
+  std::optional<double> illuminator_power_w;
 };
 
 enum class TrackingStatus { Initialising, Tracking, Lost, NewSegment };

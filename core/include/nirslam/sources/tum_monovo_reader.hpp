@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "nirslam/camera/camera_io.hpp"
@@ -29,11 +30,18 @@ std::vector<TimesEntry> read_times_file(const std::filesystem::path& file);
 // Throws InputError naming the first line whose timestamp is earlier than the line before it.
 void require_time_order(const std::vector<TimesEntry>& entries, const std::filesystem::path& file);
 
+// The illuminator power per image from a frames.csv beside times.txt (what `nirslam simulate`
+// writes: a header naming the columns, among them `file` and `illuminator_power_w`), keyed by the
+// image's file name. Empty when the header has no such columns. Throws InputError naming the
+// file and line of a line with too few fields or a power that is not a non-negative number.
+std::unordered_map<std::string, double> read_frame_powers(const std::filesystem::path& file);
+
 // A TUM monoVO sequence folder (the layout DSO reads):
 //   images/ or images.zip   the frames, paired in natural name order with the lines of times.txt
 //   times.txt               "id timestamp_s exposure_ms" (exposure optional per line); required
 //   camera.txt              DSO camera file; optional (a warning is logged when it is missing)
 //   pcalib.txt, vignette.png  photometric calibration; only their paths are recorded here
+//   frames.csv              optional; its illuminator_power_w column goes to each frame
 // Frames are decoded one at a time in next(); a zip archive stays open and members are read on
 // demand. When both images/ and images.zip exist, images/ is used.
 class TumMonoVoReader final : public Source {
@@ -65,6 +73,7 @@ private:
   std::filesystem::path folder_;
   SourceInfo info_;
   std::vector<TimesEntry> times_;
+  std::vector<std::optional<double>> powers_w_;  // per image, from frames.csv
   std::optional<DsoCameraCalibration> calibration_;
   std::optional<std::filesystem::path> pcalib_file_;
   std::optional<std::filesystem::path> vignette_file_;

@@ -760,6 +760,8 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
   return result;
 }
 
+bool DirectOdometry::exposure_explains_brightness() const { return impl_->exposure_known; }
+
 std::vector<PoseStamped> DirectOdometry::trajectory() const {
   std::vector<PoseStamped> out;
   out.reserve(impl_->frames.size());

@@ -201,6 +201,9 @@ public:
   void reset();
 
   const OdometryOptions& options() const { return options_; }
+  // Whether the current segment takes the frames' exposures as what changes their brightness
+  // (strong affine priors): they carry exposures, and no lamp the odometry does not model is on.
+  bool exposure_explains_brightness() const;
 
 private:
   struct Impl;

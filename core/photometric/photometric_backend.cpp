@@ -329,7 +329,9 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
           const Eigen::Vector2d p = o->pixel(k);
           Observation ob;
           ob.keyframe = w;
-          ob.grey = bound > 0 ? static_cast<double>(kf.saturation_grey) : bound < 0 ? static_cast<double>(kf.black_grey) : static_cast<double>(grey);
+          ob.grey = bound > 0   ? static_cast<double>(kf.saturation_grey) - options_.clip_bound_margin_grey
+                    : bound < 0 ? static_cast<double>(kf.black_grey) + options_.clip_bound_margin_grey
+                                : static_cast<double>(grey);
           ob.bound = bound;
           ob.radius = VignetteModel::radius(p.x(), p.y(), kf.width, kf.height);
           ob.gradient_weight = mu / (mu + static_cast<double>(o->gradient_sq[static_cast<std::size_t>(k)]));

@@ -40,6 +40,14 @@ PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, doubl
   keyframe.exposure = exposure;
   keyframe.exposure_known = exposure_known;
   keyframe.illumination_modelled = log_illumination != nullptr;
+  keyframe.black_grey = static_cast<float>(255.0 * black_level);
+  keyframe.saturation_grey = static_cast<float>(255.0 * saturation_level);
+  // The grey value, or the marker saying why it is not a normal sample (see the header).
+  const auto grey_or_marker = [&](float y) {
+    if (!(y > black_level)) return kGreyDark;
+    if (!(y < saturation_level)) return kGreySaturated;
+    return 255.0f * y;
+  };
   keyframe.observations.reserve(tracked.tracks.size());
   const auto at = [](const PatchSamples& s, int row, int col) { return s[row * kPatchSide + col]; };
   for (std::size_t t = 0; t < tracked.tracks.size(); ++t) {
@@ -49,7 +57,7 @@ PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, doubl
     o.position = track.position;
     if (log_illumination != nullptr && t < log_illumination->size())
       o.log_illumination = static_cast<float>((*log_illumination)[t]);
-    int valid = 0;
+    int kept = 0;  // normal or saturated samples (dark ones alone do not keep an observation)
     if (follow_surfaces) {
       // The grid where the surface it covered at the surface's start is now (see the header): the
       // grey value and the central-difference gradient (1 px steps in this frame) at each pixel.
@@ -64,12 +72,11 @@ PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, doubl
                             bilinear(tracked.intensity, p.x(), p.y() - 1.0, up) &&
                             bilinear(tracked.intensity, p.x(), p.y() + 1.0, down);
         const float gx = 0.5f * 255.0f * (right - left), gy = 0.5f * 255.0f * (down - up);
-        const bool clipped = !inside || !(y > black_level && y < saturation_level);
         o.gradient_sq[static_cast<std::size_t>(k)] = inside ? gx * gx + gy * gy : 0.0f;
-        o.grey[static_cast<std::size_t>(k)] = clipped ? -1.0f : 255.0f * y;
-        valid += !clipped;
+        o.grey[static_cast<std::size_t>(k)] = inside ? grey_or_marker(y) : kGreyMissing;
+        kept += o.grey[static_cast<std::size_t>(k)] != kGreyMissing && o.grey[static_cast<std::size_t>(k)] != kGreyDark;
       }
-      if (valid > 0) keyframe.observations.push_back(o);
+      if (kept > 0) keyframe.observations.push_back(o);
       continue;
     }
     for (int k = 0; k < kBackendPixels; ++k) {
@@ -80,11 +87,10 @@ PhotometricKeyframe make_photometric_keyframe(const TrackedFrame& tracked, doubl
       const float gx = 0.5f * 255.0f * (at(track.samples, row, col + 1) - at(track.samples, row, col - 1));
       const float gy = 0.5f * 255.0f * (at(track.samples, row + 1, col) - at(track.samples, row - 1, col));
       o.gradient_sq[static_cast<std::size_t>(k)] = gx * gx + gy * gy;
-      const bool clipped = !(y > black_level && y < saturation_level);
-      o.grey[static_cast<std::size_t>(k)] = clipped ? -1.0f : 255.0f * y;
-      valid += !clipped;
+      o.grey[static_cast<std::size_t>(k)] = grey_or_marker(y);
+      kept += o.grey[static_cast<std::size_t>(k)] != kGreyDark;
     }
-    if (valid > 0) keyframe.observations.push_back(o);
+    if (kept > 0) keyframe.observations.push_back(o);
   }
   return keyframe;
 }

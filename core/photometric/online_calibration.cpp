@@ -262,7 +262,9 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
       Job job;
       job.kind = Job::Keyframe;
       job.keyframe = make_photometric_keyframe(tracked, frame.timestamp_s, known ? *reported : *out.exposure, known,
-                                               options_.tracker.black_level, options_.tracker.saturation_level,
+                                               options_.tracker.black_level,
+                                               options_.keyframe_saturation_level < 0.0 ? options_.tracker.saturation_level
+                                                                                          : options_.keyframe_saturation_level,
                                                log_illumination, options_.keyframes_follow_deformation);
       if (!options_.background_thread) {
         run_job(job);

@@ -202,6 +202,16 @@ double lit_photometric_residual(const InverseResponse& inverse, const Eigen::Vec
   return r;
 }
 
+double clip_bound_residual(const InverseResponse& inverse, const Eigen::Vector3d& v, double exposure, double radiance,
+                           double clip_grey, double radius, double illumination, bool saturated,
+                           PhotometricJacobian* jacobian) {
+  const double r = lit_photometric_residual(inverse, v, exposure, radiance, clip_grey, radius, illumination, jacobian);
+  const bool violated = saturated ? r > 0.0 : r < 0.0;
+  if (violated) return r;
+  if (jacobian != nullptr) jacobian->setZero();
+  return 0.0;
+}
+
 PhotometricBackend::PhotometricBackend(PhotometricBackendOptions options)
     : options_(std::move(options)), response_(options_.initial_response), vignette_(options_.initial_vignette) {
   if (!response_.is_monotonic()) throw std::invalid_argument("photometric back end: the initial response is not monotonic");
@@ -262,13 +272,24 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
   for (int w = 0; w < static_cast<int>(window.size()); ++w)
     for (const KeyframeObservation& o : keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])].observations)
       tracks[SurfaceKey{o.track_id, o.surface}].emplace_back(w, &o);
-  std::vector<const std::vector<std::pair<int, const KeyframeObservation*>>*> usable;
+  // A track's length: its observations with some normal sample (those with clipped samples only
+  // add one-sided constraints, see the header).
+  const auto normal_length = [](const std::vector<std::pair<int, const KeyframeObservation*>>& list) {
+    std::size_t n = 0;
+    for (const auto& [w, o] : list)
+      n += std::any_of(o->grey.begin(), o->grey.end(), [](float g) { return g >= 0.0f; });
+    return n;
+  };
+  std::vector<std::pair<std::size_t, const std::vector<std::pair<int, const KeyframeObservation*>>*>> usable;
   usable.reserve(tracks.size());
   for (const auto& [id, list] : tracks)
-    if (static_cast<int>(list.size()) >= options_.min_observations_per_point) usable.push_back(&list);
+    if (const std::size_t n = normal_length(list); static_cast<int>(n) >= options_.min_observations_per_point)
+      usable.emplace_back(n, &list);
   // Longest tracks first (most constraints per unknown); ties by track and surface for determinism.
-  std::sort(usable.begin(), usable.end(), [](const auto* a, const auto* b) {
-    if (a->size() != b->size()) return a->size() > b->size();
+  std::sort(usable.begin(), usable.end(), [](const auto& la, const auto& lb) {
+    if (la.first != lb.first) return la.first > lb.first;
+    const auto* a = la.second;
+    const auto* b = lb.second;
     const KeyframeObservation& first_a = *(*a)[0].second;
     const KeyframeObservation& first_b = *(*b)[0].second;
     if (first_a.track_id != first_b.track_id) return first_a.track_id < first_b.track_id;
@@ -280,29 +301,47 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
   for (const int k : window) modelled |= keyframes_[static_cast<std::size_t>(k)].illumination_modelled;
   lit_problem_ = modelled;
   const double mu = modelled ? options_.lit_gradient_mu : options_.gradient_mu;
-  for (const auto* list : usable) {
+  for (const auto& [length, list] : usable) {
     if (static_cast<int>(points_.size()) + kBackendPixels > options_.max_points) break;
     for (int k = 0; k < kBackendPixels; ++k) {
       Point point;
       point.begin = static_cast<int>(observations_.size());
-      double log_reference = std::nan("");  // log a of the point's first usable observation
-      for (const auto& [w, o] : *list) {
-        const float grey = o->grey[static_cast<std::size_t>(k)];
-        if (grey < 0.0f || !std::isfinite(o->log_illumination)) continue;  // clipped, or distance unknown
-        if (modelled && !keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])].illumination_modelled) continue;
-        if (std::isnan(log_reference)) log_reference = o->log_illumination;
-        const PhotometricKeyframe& kf = keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])];
-        const Eigen::Vector2d p = o->pixel(k);
-        Observation ob;
-        ob.keyframe = w;
-        ob.grey = grey;
-        ob.radius = VignetteModel::radius(p.x(), p.y(), kf.width, kf.height);
-        ob.gradient_weight = mu / (mu + static_cast<double>(o->gradient_sq[static_cast<std::size_t>(k)]));
-        ob.illumination = std::exp(static_cast<double>(o->log_illumination) - log_reference);
-        observations_.push_back(ob);
+      double log_reference = std::nan("");  // log a of the point's first normal observation
+      // Normal samples first (the reference of the light's factor is among them), then the
+      // clipped ones as bounds.
+      int normal = 0;
+      for (const int pass : {0, 1}) {
+        for (const auto& [w, o] : *list) {
+          const float grey = o->grey[static_cast<std::size_t>(k)];
+          int bound = 0;
+          if (grey == kGreySaturated && options_.saturation_bounds)
+            bound = 1;
+          else if (grey == kGreyDark && options_.black_bounds)
+            bound = -1;
+          else if (grey < 0.0f)
+            continue;  // clipped (no bound asked for) or not sampled
+          if ((bound != 0) != (pass == 1)) continue;
+          if (pass == 1 && normal < options_.min_observations_per_point) break;  // L unknown: no bounds
+          if (!std::isfinite(o->log_illumination)) continue;  // distance unknown
+          if (modelled && !keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])].illumination_modelled) continue;
+          if (std::isnan(log_reference)) log_reference = o->log_illumination;
+          const PhotometricKeyframe& kf = keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])];
+          const Eigen::Vector2d p = o->pixel(k);
+          Observation ob;
+          ob.keyframe = w;
+          ob.grey = bound > 0   ? static_cast<double>(kf.saturation_grey) - options_.clip_bound_margin_grey
+                    : bound < 0 ? static_cast<double>(kf.black_grey) + options_.clip_bound_margin_grey
+                                : static_cast<double>(grey);
+          ob.bound = bound;
+          ob.radius = VignetteModel::radius(p.x(), p.y(), kf.width, kf.height);
+          ob.gradient_weight = mu / (mu + static_cast<double>(o->gradient_sq[static_cast<std::size_t>(k)]));
+          ob.illumination = std::exp(static_cast<double>(o->log_illumination) - log_reference);
+          observations_.push_back(ob);
+          normal += bound == 0;
+        }
       }
       point.end = static_cast<int>(observations_.size());
-      if (point.end - point.begin >= options_.min_observations_per_point)
+      if (normal >= options_.min_observations_per_point)
         points_.push_back(point);
       else
         observations_.resize(static_cast<std::size_t>(point.begin));
@@ -325,6 +364,7 @@ void PhotometricBackend::initialise_radiances(State& state) const {
     double num = 0.0, den = 0.0;
     for (int i = p.begin; i < p.end; ++i) {
       const Observation& o = observations_[static_cast<std::size_t>(i)];
+      if (o.bound != 0) continue;  // from the normal samples
       const double u = state.u[static_cast<std::size_t>(i)];
       const double slope = f_slope(state.c, u);
       const double k = slope / (2.0 * std::max(u, 1e-6));
@@ -362,6 +402,7 @@ bool PhotometricBackend::estimate_model_noise(const State& state, double& sigma_
   samples.reserve(observations_.size());
   for (std::size_t pi = 0; pi < points_.size(); ++pi)
     for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
+      if (observations_[static_cast<std::size_t>(i)].bound != 0) continue;
       double slope = 0.0;
       const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope);
       const double g = 127.5 * state.u[static_cast<std::size_t>(i)] * slope;
@@ -405,9 +446,10 @@ double PhotometricBackend::data_cost(const State& state, double delta) const {
   for (std::size_t pi = 0; pi < points_.size(); ++pi) {
     for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
       double slope = 0.0;
-      const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope) *
+      const Observation& o = observations_[static_cast<std::size_t>(i)];
+      const double s = bounded(o, scaled_residual(state, pi, static_cast<std::size_t>(i), slope)) *
                        std::sqrt(model_noise_weight(state.u[static_cast<std::size_t>(i)], slope));
-      cost += observations_[static_cast<std::size_t>(i)].gradient_weight * huber_cost(s, delta);
+      cost += o.gradient_weight * huber_cost(s, delta);
     }
   }
   return cost;
@@ -423,7 +465,9 @@ std::optional<Eigen::Vector4d> PhotometricBackend::data_driven_response(const st
   // point by point (Schur), g pinned at the middle of the observed range (the additive constant
   // it shares with the log L_p).
   constexpr int kLevels = 256;
-  const double smoothness = 0.01 * static_cast<double>(observations_.size()) / kLevels;
+  const double normal_samples = static_cast<double>(
+      std::count_if(observations_.begin(), observations_.end(), [](const Observation& o) { return o.bound == 0; }));
+  const double smoothness = 0.01 * normal_samples / kLevels;
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(kLevels, kLevels);
   Eigen::VectorXd b = Eigen::VectorXd::Zero(kLevels);
   std::unordered_map<int, double> row;  // one point's coupling of g with its log L
@@ -433,7 +477,7 @@ std::optional<Eigen::Vector4d> PhotometricBackend::data_driven_response(const st
     double h_ll = 0.0, b_l = 0.0;
     for (int i = p.begin; i < p.end; ++i) {
       const Observation& o = observations_[static_cast<std::size_t>(i)];
-      if (!known[static_cast<std::size_t>(o.keyframe)] || o.grey < grey_low || o.grey > grey_high) continue;
+      if (o.bound != 0 || !known[static_cast<std::size_t>(o.keyframe)] || o.grey < grey_low || o.grey > grey_high) continue;
       const double target = std::log(exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(v, o.radius) * o.illumination);
       const int k = std::min(static_cast<int>(o.grey), kLevels - 2);
       const double t = o.grey - k;
@@ -543,7 +587,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   }
   build_problem(window_);
   step.points = static_cast<int>(points_.size());
-  step.observations = static_cast<int>(observations_.size());
+  for (const Observation& o : observations_) (o.bound == 0 ? step.observations : step.clip_bounds) += 1;
   if (step.points < options_.min_points) {
     step.status = "too few points tracked over several keyframes (" + std::to_string(step.points) + " < " +
                   std::to_string(options_.min_points) + "); last estimate kept";
@@ -552,7 +596,8 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   {
     std::vector<double> greys;
     greys.reserve(observations_.size());
-    for (const Observation& o : observations_) greys.push_back(o.grey);
+    for (const Observation& o : observations_)
+      if (o.bound == 0) greys.push_back(o.grey);
     const auto lo = greys.begin() + static_cast<std::ptrdiff_t>(greys.size() / 100);
     const auto hi = greys.begin() + static_cast<std::ptrdiff_t>(greys.size() - 1 - greys.size() / 100);
     std::nth_element(greys.begin(), lo, greys.end());
@@ -592,6 +637,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     for (const Point& p : points_) {
       double lo = 2.0, hi = -1.0;
       for (int i = p.begin; i < p.end; ++i) {
+        if (observations_[static_cast<std::size_t>(i)].bound != 0) continue;
         lo = std::min(lo, observations_[static_cast<std::size_t>(i)].radius);
         hi = std::max(hi, observations_[static_cast<std::size_t>(i)].radius);
       }
@@ -613,7 +659,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   }
 
   const Eigen::Vector4d c_prior = options_.initial_response.coefficients();
-  const double nobs = static_cast<double>(observations_.size());
+  const double nobs = static_cast<double>(step.observations);  // normal samples: the priors' scale as without bounds
   const double prior_weight = options_.coefficient_prior_weight * nobs;
   const double monotonic_weight = options_.monotonic_penalty_weight * nobs;
   const MonotonicGrid& grid = monotonic_grid();
@@ -653,8 +699,9 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     }
     if (model_sigma_log_ > 0.0) {
       double sum = 0.0;
-      for (std::size_t i = 0; i < observations_.size(); ++i) sum += model_noise_weight(state.u[i], f_slope(state.c, state.u[i]));
-      if (sum > 0.0) model_noise_norm_ = static_cast<double>(observations_.size()) / sum;
+      for (std::size_t i = 0; i < observations_.size(); ++i)
+        if (observations_[i].bound == 0) sum += model_noise_weight(state.u[i], f_slope(state.c, state.u[i]));
+      if (sum > 0.0) model_noise_norm_ = static_cast<double>(step.observations) / sum;
       initialise_radiances(state);
     }
   }
@@ -666,6 +713,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     abs_s.reserve(observations_.size());
     for (std::size_t pi = 0; pi < points_.size(); ++pi)
       for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
+        if (observations_[static_cast<std::size_t>(i)].bound != 0) continue;
         double slope = 0.0;
         const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope);
         abs_s.push_back(std::abs(s) * std::sqrt(model_noise_weight(state.u[static_cast<std::size_t>(i)], slope)));
@@ -800,6 +848,11 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           const double eVk = eV * k;
           const double noise_weight = model_noise_weight(u, slope);
           const double s = r * eVk * std::sqrt(noise_weight);
+          if (bounded(o, s) == 0.0 && o.bound != 0) {  // a clipped sample whose bound holds: no cost
+            h_pe[static_cast<std::size_t>(i)] = 0.0;
+            continue;
+          }
+          // A violated bound: the residual and derivatives of a normal sample at the clip level.
           const double w = o.gradient_weight * noise_weight * eVk * eVk * huber_weight(s, delta);
           Eigen::Matrix<double, 7, 1> jg;
           if (step.response_estimated)
@@ -1043,19 +1096,32 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   {
     double squared = 0.0;
     std::size_t inliers = 0;
+    std::vector<double> violations;
     for (std::size_t pi = 0; pi < points_.size(); ++pi)
       for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
         double slope = 0.0;
         const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope);
+        if (const Observation& o = observations_[static_cast<std::size_t>(i)]; o.bound != 0) {
+          if (bounded(o, s) != 0.0) violations.push_back(std::abs(s));
+          continue;
+        }
         if (std::abs(s) * std::sqrt(model_noise_weight(state.u[static_cast<std::size_t>(i)], slope)) <= delta) squared += s * s, ++inliers;
       }
     step.residual_rms = inliers ? std::sqrt(squared / static_cast<double>(inliers)) : 0.0;
+    step.clip_bounds_violated = static_cast<int>(violations.size());
+    step.clip_bound_violation = median_in_place(violations);
   }
   char text[200];
   std::snprintf(text, sizeof text, "%s after %d iterations%s (%d keyframes, %d points, residual %.2f grey levels)",
                 step.converged ? "converged" : "iterating", step.iterations, step.multi_started ? " (multi-start)" : "",
                 step.keyframes, step.points, step.residual_rms);
   step.status = text;
+  if (step.clip_bounds > 0) {
+    char bounds[120];
+    std::snprintf(bounds, sizeof bounds, "; clip bounds %d, %d violated (median %.2f grey levels)", step.clip_bounds,
+                  step.clip_bounds_violated, step.clip_bound_violation);
+    step.status += bounds;
+  }
   if (!held.empty()) step.status += "; " + held;
   return step;
 }

@@ -453,5 +453,148 @@ TEST(PhotometricBackend, DegenerateInputKeepsTheModelAndSaysWhy) {
   EXPECT_TRUE(std::isfinite(empty.response().coefficients().sum()));
 }
 
+// The one-sided residual of a clipped sample (clip_bound_residual): zero where the bound holds,
+// the lit residual with its Jacobian where it does not; the Jacobian against central differences
+// away from the kink.
+TEST(PhotometricBackend, ClipBoundResidualJacobianMatchesNumericDifferentiation) {
+  const Eigen::Vector4d c = ResponseModel::from_preset(ResponsePreset::Filmic).coefficients();
+  const Eigen::Vector3d v(-0.3, 0.08, -0.04);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> radius_of(0.0, 1.0), exposure_of(0.5, 20.0), factor_of(0.0, 1.0),
+      illumination_of(0.5, 2.0);
+  int active[2] = {0, 0}, inactive[2] = {0, 0};
+  for (int trial = 0; trial < 200; ++trial) {
+    const bool saturated = trial % 2 == 0;
+    const double clip_grey = saturated ? 254.5 : 7.65;
+    const double radius = radius_of(rng), exposure = exposure_of(rng), illumination = illumination_of(rng);
+    const InverseResponse inverse(c);
+    // Within a factor 2 of the bound's radiance G(clip) / (e V a), so both sides come up.
+    const double bound_radiance = 255.0 * std::pow(inverse.sqrt_irradiance(clip_grey / 255.0), 2) /
+                                  (exposure * VignetteModel{v}(radius) * illumination);
+    const double radiance = bound_radiance * std::exp(std::log(2.0) * (2.0 * factor_of(rng) - 1.0));
+    PhotometricJacobian J, J_normal;
+    const double r = clip_bound_residual(inverse, v, exposure, radiance, clip_grey, radius, illumination, saturated, &J);
+    const double normal = lit_photometric_residual(inverse, v, exposure, radiance, clip_grey, radius, illumination, &J_normal);
+    const bool violated = saturated ? normal > 0.0 : normal < 0.0;
+    (violated ? active : inactive)[saturated] += 1;
+    if (!violated) {
+      EXPECT_EQ(r, 0.0);
+      EXPECT_EQ(J.norm(), 0.0);
+      continue;
+    }
+    EXPECT_EQ(r, normal);
+    if (std::abs(normal) < 1e-3) continue;  // too near the kink for central differences
+    Eigen::Matrix<double, 9, 1> p;
+    p << c, v, exposure, radiance;
+    const auto residual = [&](const Eigen::Matrix<double, 9, 1>& q) {
+      return clip_bound_residual(InverseResponse(q.head<4>()), q.segment<3>(4), q[7], q[8], clip_grey, radius, illumination,
+                                 saturated);
+    };
+    for (int k = 0; k < 9; ++k) {
+      const double h = 1e-6 * std::max(1.0, std::abs(p[k]));
+      Eigen::Matrix<double, 9, 1> plus = p, minus = p;
+      plus[k] += h;
+      minus[k] -= h;
+      const double numeric = (residual(plus) - residual(minus)) / (2.0 * h);
+      EXPECT_NEAR(J[k], numeric, 1e-5 * std::max(1.0, std::abs(numeric)))
+          << "parameter " << k << (saturated ? " saturated" : " dark") << " radius " << radius << " exposure " << exposure;
+    }
+  }
+  // Both sides of both bounds were exercised.
+  for (int side = 0; side < 2; ++side) {
+    EXPECT_GT(active[side], 10) << side;
+    EXPECT_GT(inactive[side], 10) << side;
+  }
+}
+
+// Keyframes whose normal samples stop at mid grey while some samples clip (no vignette): dark
+// points (X = 0.04-0.12 under exposure 1) and bright ones (0.334-0.35) under the known exposures
+// 1 and 3, so the bright points are seen unclipped under exposure 1 (as bright as the dark points
+// under 3, X up to 0.36) and saturated, barely (X = 1.00-1.05), under 3. Only full scale clips
+// (saturation_grey 254.5, as an 8-bit camera's 255). The normal samples fix G only up to the
+// irradiance scale s over the observed grey range (README "Photometric calibration accuracy");
+// the saturated ones say e V L >= G(254.5) ~ 255 for points whose L the normal samples give.
+struct ClippedProblem {
+  std::vector<PhotometricKeyframe> keyframes;
+};
+ClippedProblem clipped_problem(const ResponseModel& f, unsigned seed) {
+  ClippedProblem problem;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const int width = 320, height = 240, tracks = 60, keyframes = 24;
+  std::vector<double> radiance(static_cast<std::size_t>(tracks * kBackendPixels));
+  for (std::size_t i = 0; i < radiance.size(); ++i)
+    radiance[i] = i % 4 == 0 ? 0.334 + 0.016 * uniform(rng) : 0.04 + 0.08 * uniform(rng);
+  std::vector<Eigen::Vector2d> position(static_cast<std::size_t>(tracks));
+  for (auto& p : position) p = Eigen::Vector2d(20 + 280 * uniform(rng), 20 + 200 * uniform(rng));
+  const double exposures[2] = {1.0, 3.0};
+  for (int k = 0; k < keyframes; ++k) {
+    PhotometricKeyframe kf;
+    kf.frame_index = k;
+    kf.timestamp_s = 0.1 * k;
+    kf.width = width;
+    kf.height = height;
+    kf.exposure = exposures[k % 2];
+    kf.exposure_known = true;
+    kf.saturation_grey = 254.5f;  // 8-bit: only full scale is clipped
+    for (int t = 0; t < tracks; ++t) {
+      KeyframeObservation o;
+      o.track_id = t;
+      o.position = position[static_cast<std::size_t>(t)];
+      for (int p = 0; p < kBackendPixels; ++p) {
+        const double X = kf.exposure * radiance[static_cast<std::size_t>(t * kBackendPixels + p)];
+        o.grey[static_cast<std::size_t>(p)] = X >= 1.0 ? kGreySaturated : static_cast<float>(255.0 * f(X));
+      }
+      kf.observations.push_back(o);
+    }
+    problem.keyframes.push_back(std::move(kf));
+  }
+  return problem;
+}
+
+// s < 1 (the plain fit's G too low over the observed range, rising steeply to G(255) = 255 above
+// it) violates the bound; s > 1 does not (a saturated sample's e V L only grows with s), so the
+// bound fixes the scale from below only: the first response below is fitted with s < 1 without
+// the bounds, the second with s > 1, which they leave as it is. Measured (this test's printout):
+// c = (-0.5, -0.2, 0, 0): max error 9.10 grey levels without the bounds (s 0.927 at the top of
+// the observed range, grey 119), 1.47 with them (0.994); c = (0, 0.3, 0, 0): 15.83 either way (s
+// 1.123).
+TEST(PhotometricBackend, SaturatedSamplesFixTheIrradianceScaleFromBelow) {
+  const Eigen::Vector4d responses[2] = {Eigen::Vector4d(-0.5, -0.2, 0.0, 0.0), Eigen::Vector4d(0.0, 0.3, 0.0, 0.0)};
+  for (int which = 0; which < 2; ++which) {
+    const ResponseModel truth(responses[which]);
+    ASSERT_TRUE(truth.is_monotonic());
+    double error[2] = {0.0, 0.0}, scale[2] = {0.0, 0.0};
+    for (const bool bounds : {false, true}) {
+      PhotometricBackendOptions options;
+      options.estimate_vignette = false;
+      options.saturation_bounds = bounds;
+      options.clip_bound_margin_grey = 0.0;  // exact data: no noise to leave room for (with the default 3: 3.19)
+      PhotometricBackend backend(options);
+      for (auto& kf : clipped_problem(truth, 3).keyframes) backend.add_keyframe(std::move(kf));
+      const BackendStep step = backend.optimise(100, true);
+      ASSERT_TRUE(step.ok) << step.status;
+      ASSERT_TRUE(step.response_estimated) << step.status;
+      EXPECT_EQ(step.clip_bounds, bounds ? 1620 : 0) << step.status;  // 135 bright points, 12 long exposures
+      EXPECT_LT(step.grey_high, 160.0);  // the normal samples stop at mid grey
+      error[bounds] = inverse_response_max_error(backend.response(), truth);
+      const std::size_t top = static_cast<std::size_t>(step.grey_high);
+      scale[bounds] = backend.response().inverse_table(256)[top] / truth.inverse_table(256)[top];
+      std::printf("c %s, bounds %s: max error %.2f grey levels, G / G_true %.3f at grey %zu; %s\n",
+                  which == 0 ? "(-0.5, -0.2, 0, 0)" : "(0, 0.3, 0, 0)", bounds ? "on" : "off", error[bounds], scale[bounds],
+                  top, step.status.c_str());
+    }
+    if (which == 0) {
+      EXPECT_LT(scale[0], 0.95);   // measured 0.927
+      EXPECT_GT(error[0], 6.0);    // measured 9.10
+      EXPECT_GT(scale[1], 0.985);  // measured 0.994
+      EXPECT_LT(error[1], 2.0);    // measured 1.47
+    } else {
+      EXPECT_GT(scale[0], 1.05);  // measured 1.123
+      EXPECT_NEAR(error[1], error[0], 0.05);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace nirslam

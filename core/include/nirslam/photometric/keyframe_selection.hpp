@@ -10,7 +10,11 @@
 // A keyframe keeps, per track, the grey values of kBackendPixels pixels of the tracked 9x9 patch
 // (a 3 x 3 grid with a 3 px pitch) and their squared image gradient, for the gradient weight
 // w = mu / (mu + |grad I|^2) of the paper's Eq. 2-5. Grey values are in 0..255 units (16-bit
-// frames scaled), so G = f^-1 applies as a 256-level table does; clipped pixels are stored as -1.
+// frames scaled), so G = f^-1 applies as a 256-level table does. A pixel that is not a normal
+// sample is stored as a negative marker (so `grey < 0` means "not a normal sample" everywhere):
+// kGreyDark at or below the black level, kGreySaturated at or above the saturation level (its
+// irradiance is at least that of the saturation level: the back end's one-sided constraint,
+// photometric_backend.hpp), kGreyMissing where the followed grid left the frame.
 //
 // The back end takes a track's k-th pixel in every keyframe for one surface point of constant
 // radiance. With the fixed grid that is not so: as the camera approaches, the grid covers less of
@@ -35,6 +39,9 @@
 namespace nirslam {
 
 inline constexpr int kBackendPixels = 9;
+inline constexpr float kGreyDark = -1.0f;
+inline constexpr float kGreySaturated = -2.0f;
+inline constexpr float kGreyMissing = -3.0f;
 inline constexpr int kBackendPixelPitch = 3;
 // Offset (dx, dy) in pixels of back-end pixel k from the track position.
 Eigen::Vector2d backend_pixel_offset(int k);
@@ -42,7 +49,7 @@ Eigen::Vector2d backend_pixel_offset(int k);
 struct KeyframeObservation {
   std::int64_t track_id = 0;
   Eigen::Vector2d position = Eigen::Vector2d::Zero();  // track centre, pixels
-  std::array<float, kBackendPixels> grey{};            // 0..255, -1 where clipped
+  std::array<float, kBackendPixels> grey{};            // 0..255, or a kGrey* marker (< 0)
   std::array<float, kBackendPixels> gradient_sq{};     // |grad I|^2, grey levels^2 per px^2
   // The grid's deformation (pixel k lies at position + A o_k) and the track's surface (see above);
   // I and 0 for the fixed grid.
@@ -63,12 +70,17 @@ struct PhotometricKeyframe {
   double exposure = 1.0;          // the reported exposure x gain when known, else the front end's estimate
   bool exposure_known = false;    // reported by the source (and the back end is told to trust it)
   bool illumination_modelled = false;  // observations carry log_illumination (the light's factor)
+  // The clip levels in grey levels: a kGreyDark sample was at most black_grey, a kGreySaturated
+  // one at least saturation_grey.
+  float black_grey = 0.03f * 255.0f;
+  float saturation_grey = 0.97f * 255.0f;
   std::vector<KeyframeObservation> observations;
 };
 
 // The keyframe's back-end data from a tracked frame and its exposure estimate. `exposure` is what
 // the keyframe starts with (reported or estimated). black_level / saturation_level: fractions of
-// full scale beyond which a pixel counts as clipped.
+// full scale beyond which a pixel counts as clipped. An observation is kept when at least one of its
+// pixels is a normal sample or saturated.
 // `log_illumination`, when given, holds each track's log(P / d^2) (aligned with tracked.tracks).
 // `follow_surfaces`: the grid follows each track's deformation (see above; needs
 // tracked.deformation_estimated and tracked.intensity).

@@ -144,6 +144,11 @@ struct OnlineCalibrationOptions {
   // tracks' deformation the tracker estimates (track_deformation.hpp; shared with the exposure
   // estimator's follow_deformation). Measured: README "Photometric calibration accuracy".
   bool keyframes_follow_deformation = false;
+  // Fraction of full scale at or above which a keyframe sample counts as saturated (the back end's
+  // one-sided constraint e V a L >= G(level), photometric_backend.hpp); negative: the tracker's
+  // saturation_level. Only the true clip (full scale) says something about the irradiance scale:
+  // at a level inside the observed range both sides of the bound scale with it.
+  double keyframe_saturation_level = -1.0;
 };
 
 class OnlinePhotometricCalibration {

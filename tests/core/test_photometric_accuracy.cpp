@@ -172,6 +172,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* mu = std::getenv("NIRSLAM_PHOTOMETRIC_MU")) options.backend.gradient_mu = std::atof(mu);
   if (const char* mu = std::getenv("NIRSLAM_PHOTOMETRIC_LIT_MU")) options.backend.lit_gradient_mu = std::atof(mu);
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_CURVATURE")) options.backend.log_curvature_weight = std::atof(w);
+  if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_RIM_CURVATURE")) options.backend.vignette_rim_curvature_weight = std::atof(w);
   // The distances here are the simulator's, exact: no noise in log a to model (fitted anyway, the
   // model noise takes other errors for it: room d^2 + cos 0.0037 -> 0.0225 vignette, 1.6 -> 2.7 %).
   options.backend.lit_log_illumination_sigma = 0.0;

@@ -796,10 +796,31 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     }
     return penalty;
   };
+  // The straightness of V beyond the observed radii (vignette_rim_curvature_weight, header):
+  // rho_j = d^2 V / dt^2 at t_j = r_j^2, r_j from the 99th percentile of the radii to 1; linear in v.
+  constexpr int kRimRadii = 8;
+  double rim_weight = 0.0;
+  Eigen::Matrix<double, kRimRadii, 3> rim_jacobian = Eigen::Matrix<double, kRimRadii, 3>::Zero();
+  if (step.vignette_estimated && !monotone_steps && options_.vignette_rim_curvature_weight > 0.0) {
+    std::vector<double> radii;
+    radii.reserve(observations_.size());
+    for (const Observation& o : observations_) radii.push_back(o.radius);
+    const auto top = radii.begin() + static_cast<std::ptrdiff_t>(radii.size() - 1 - radii.size() / 100);
+    std::nth_element(radii.begin(), top, radii.end());
+    const double r_high = std::min(*top, 1.0);
+    rim_weight = options_.vignette_rim_curvature_weight * nobs * (1.0 - r_high);
+    for (int j = 0; j < kRimRadii; ++j) {
+      const double r = r_high + (1.0 - r_high) * j / (kRimRadii - 1.0);
+      rim_jacobian.row(j) << 0.0, 2.0, 6.0 * r * r;
+    }
+  }
+  const auto rim_penalty = [&](const Eigen::Vector3d& v) {
+    return rim_weight > 0.0 ? rim_weight * (rim_jacobian * v).squaredNorm() : 0.0;
+  };
   const auto vignette_acceptable = [&](const Eigen::Vector3d& v) {
     return vignette_positive(v) && (!options_.vignette_monotonic || VignetteModel{v}.is_plausible());
   };
-  const auto total_cost = [&](const State& st) { return data_cost(st, delta) + regulariser(st.c); };
+  const auto total_cost = [&](const State& st) { return data_cost(st, delta) + regulariser(st.c) + rim_penalty(st.v); };
   state.cost = total_cost(state);
   if (!std::isfinite(state.cost)) {
     step.ok = false;
@@ -917,6 +938,11 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
             if (shortfall > 0.0) b.head<4>() -= monotonic_weight * shortfall * dh;
           }
         }
+      }
+
+      if (rim_weight > 0.0) {
+        H.block<3, 3>(4, 4).noalias() += rim_weight * rim_jacobian.transpose() * rim_jacobian;
+        b.segment<3>(4) += rim_weight * rim_jacobian.transpose() * (rim_jacobian * st.v);
       }
 
       bool accepted = false;

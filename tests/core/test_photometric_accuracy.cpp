@@ -178,6 +178,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (std::getenv("NIRSLAM_PHOTOMETRIC_BLACK_BOUNDS") != nullptr) options.backend.black_bounds = true;
   if (const char* margin = std::getenv("NIRSLAM_PHOTOMETRIC_CLIP_MARGIN")) options.backend.clip_bound_margin_grey = std::atof(margin);
   if (const char* level = std::getenv("NIRSLAM_PHOTOMETRIC_KEYFRAME_SATURATION")) options.keyframe_saturation_level = std::atof(level);
+  if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_RIM_CURVATURE")) options.backend.vignette_rim_curvature_weight = std::atof(w);
   // The distances here are the simulator's, exact: no noise in log a to model (fitted anyway, the
   // model noise takes other errors for it: room d^2 + cos 0.0037 -> 0.0225 vignette, 1.6 -> 2.7 %).
   options.backend.lit_log_illumination_sigma = 0.0;

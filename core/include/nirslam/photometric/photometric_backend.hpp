@@ -249,6 +249,18 @@ struct PhotometricBackendOptions {
   double clip_bound_margin_grey = 3.0;
   double min_exposure_ratio = 1.15;   // max/min exposure in the window below which f is not estimated
   double min_radius_span = 0.1;       // V is estimated when min_points / 2 points span this range of radii
+  // The straightest continuation of V over t = r^2 beyond the observed radii (the 99th percentile
+  // of the observations' radius; tracks seldom reach the image's corners): the second derivative
+  // d^2 V / dt^2 = 2 v2 + 6 v3 t at 8 radii from there to 1 is pulled to 0 with this weight times
+  // the number of observations and the unobserved part of the radius, as log_curvature_weight
+  // does for G. Without it V at the corners is the cubic's extrapolation of the data at mid
+  // radius, where biases of a few tenths of a per cent became 14-17 % at r = 1 on the simulated
+  // tunnel (README "Photometric calibration accuracy", PhotometricAccuracy.DiagnoseFollowing). Not under the lamp's factor (monotone steps). 0: off.
+  // Measured on the 16-row table (rows meeting response / vignette / exposure): 1 gives 5 / 12 / 7
+  // (off: 6 / 7 / 8), with the observations following the surface 5 / 13 / 7 (off: 4 / 6 / 7);
+  // off because the rim's V moves the response's irradiance scale (room / log 1.85 -> 4.49 grey
+  // levels over all levels, 0.16 -> 0.20 modulo the scale) and costs rows whose V was right.
+  double vignette_rim_curvature_weight = 0.0;
   bool vignette_monotonic = true;     // every accepted V falls (weakly) from the centre to the rim
   // How it stays so (see VignetteSteps), without and with the co-located light's factor in the
   // window's observations. Under the lamp the halo factor V B is steep (the simulator's 30-degree

@@ -132,18 +132,27 @@ void truth_residuals(const std::vector<PhotometricKeyframe>& keyframes, const Si
   std::printf("\n");
 }
 
+// The scene and response curve a diagnostic's env spec names ("tunnel:gamma"), with defaults.
+sim::SceneKind scene_in_spec(const std::string& spec) {
+  if (spec.find("outdoor") != std::string::npos) return sim::SceneKind::Outdoor;
+  if (spec.find("parking") != std::string::npos) return sim::SceneKind::Parking;
+  if (spec.find("tunnel") != std::string::npos) return sim::SceneKind::Tunnel;
+  return sim::SceneKind::Room;
+}
+ResponsePreset preset_in_spec(const std::string& spec, ResponsePreset fallback) {
+  if (spec.find("filmic") != std::string::npos) return ResponsePreset::Filmic;
+  if (spec.find("linear") != std::string::npos) return ResponsePreset::Linear;
+  if (spec.find("gamma") != std::string::npos) return ResponsePreset::Gamma;
+  if (spec.find("log") != std::string::npos) return ResponsePreset::Log;
+  return fallback;
+}
+
 TEST(PhotometricAccuracy, DiagnoseObservations) {
   const char* env = std::getenv("NIRSLAM_PHOTOMETRIC_DIAG");
   if (env == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_DIAG=scene:preset";
   const std::string spec = env;
-  sim::SceneKind scene = sim::SceneKind::Room;
-  if (spec.find("outdoor") != std::string::npos) scene = sim::SceneKind::Outdoor;
-  if (spec.find("parking") != std::string::npos) scene = sim::SceneKind::Parking;
-  if (spec.find("tunnel") != std::string::npos) scene = sim::SceneKind::Tunnel;
-  ResponsePreset preset = ResponsePreset::Log;
-  if (spec.find("gamma") != std::string::npos) preset = ResponsePreset::Gamma;
-  if (spec.find("linear") != std::string::npos) preset = ResponsePreset::Linear;
-  if (spec.find("filmic") != std::string::npos) preset = ResponsePreset::Filmic;
+  const sim::SceneKind scene = scene_in_spec(spec);
+  const ResponsePreset preset = preset_in_spec(spec, ResponsePreset::Log);
 
   SimulatorOptions o;
   o.scene = scene;
@@ -501,10 +510,7 @@ TEST(PhotometricAccuracy, DiagnoseDeformation) {
   if (env == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_DEFORMATION_DIAG=scene";
   const std::string spec = env;
   SimulatorOptions o;
-  o.scene = sim::SceneKind::Room;
-  if (spec.find("outdoor") != std::string::npos) o.scene = sim::SceneKind::Outdoor;
-  if (spec.find("parking") != std::string::npos) o.scene = sim::SceneKind::Parking;
-  if (spec.find("tunnel") != std::string::npos) o.scene = sim::SceneKind::Tunnel;
+  o.scene = scene_in_spec(spec);
   o.width = 320;
   o.height = 240;
   o.supersampling = 1;
@@ -636,14 +642,8 @@ TEST(PhotometricAccuracy, DiagnoseFollowing) {
   if (env == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_FOLLOW_DIAG=scene:preset";
   const std::string spec = env;
   SimulatorOptions o;
-  o.scene = sim::SceneKind::Room;
-  if (spec.find("outdoor") != std::string::npos) o.scene = sim::SceneKind::Outdoor;
-  if (spec.find("parking") != std::string::npos) o.scene = sim::SceneKind::Parking;
-  if (spec.find("tunnel") != std::string::npos) o.scene = sim::SceneKind::Tunnel;
-  ResponsePreset preset = ResponsePreset::Gamma;
-  if (spec.find("log") != std::string::npos) preset = ResponsePreset::Log;
-  if (spec.find("linear") != std::string::npos) preset = ResponsePreset::Linear;
-  if (spec.find("filmic") != std::string::npos) preset = ResponsePreset::Filmic;
+  o.scene = scene_in_spec(spec);
+  const ResponsePreset preset = preset_in_spec(spec, ResponsePreset::Gamma);
   // As constant_radiance() in test_photometric_accuracy.cpp.
   o.width = 320;
   o.height = 240;

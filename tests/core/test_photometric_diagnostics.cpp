@@ -24,6 +24,7 @@
 #include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/sim/simulator.hpp"
+#include "photometric_sequences.hpp"
 
 namespace nirslam {
 namespace {
@@ -641,23 +642,9 @@ TEST(PhotometricAccuracy, DiagnoseFollowing) {
   const char* env = std::getenv("NIRSLAM_PHOTOMETRIC_FOLLOW_DIAG");
   if (env == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_FOLLOW_DIAG=scene:preset";
   const std::string spec = env;
-  SimulatorOptions o;
-  o.scene = scene_in_spec(spec);
   const ResponsePreset preset = preset_in_spec(spec, ResponsePreset::Gamma);
-  // As constant_radiance() in test_photometric_accuracy.cpp.
-  o.width = 320;
-  o.height = 240;
-  o.supersampling = 1;
-  if (const char* samples = std::getenv("NIRSLAM_PHOTOMETRIC_SUPERSAMPLING")) o.supersampling = std::atoi(samples);
-  o.frames = 150;
-  o.texture_filtering = TextureFiltering::DistanceIndependent;
-  o.exposure_mode = ExposureMode::Auto;
-  o.exposure_ms = 2.0;
-  o.ae_target_swing = 0.0;
-  o.ae_target_period_frames = 50.0;
-  o.response = ResponseModel::from_preset(preset);
-  o.powers_w = {0.0};
-  o.ambient_irradiance = 0.4;
+  // The table's own sequence (its env variants too).
+  const SimulatorOptions o = test_photometric::constant_radiance(scene_in_spec(spec), preset, 150);
   Simulator sim(o);
   const sim::Lighting lighting = sim.lighting(0.0);
   const sim::Renderer& renderer = sim.renderer();

@@ -103,7 +103,8 @@ struct DirectOdometry::Impl {
   std::vector<FrameRecord> frames;
   std::vector<MapPoint> archived_points;
 
-  bool exposure_known = false;
+  // The frames carry exposures and no lamp the odometry does not model is on: strong affine priors.
+  bool exposure_explains_brightness = false;
 
   // The second thread of the epipolar searches.
   HelperThread helper;
@@ -172,11 +173,11 @@ struct DirectOdometry::Impl {
 
   double a_prior(bool first) const {
     if (first) return 1e10;
-    return exposure_known ? options.affine_a_prior_known_exposure : options.affine_a_prior_free;
+    return exposure_explains_brightness ? options.affine_a_prior_known_exposure : options.affine_a_prior_free;
   }
   double b_prior(bool first) const {
     if (first) return 1e8;
-    return exposure_known ? options.affine_b_prior_known_exposure : options.affine_b_prior_free;
+    return exposure_explains_brightness ? options.affine_b_prior_known_exposure : options.affine_b_prior_free;
   }
 
   static MapPoint to_map_point(const WindowFrame& host, const WindowPoint& p, const LevelCamera& camera, int seg,
@@ -740,7 +741,7 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
   const bool unmodelled_lamp =
       !options_.illuminator_correction && frame.illuminator_power_w && *frame.illuminator_power_w > 0.0;
   if (impl_->phase == Impl::Phase::Initialising && impl_->initializer->state() != InitializerState::Tracking)
-    impl_->exposure_known = frame.exposure.has_value() && !unmodelled_lamp;
+    impl_->exposure_explains_brightness = frame.exposure.has_value() && !unmodelled_lamp;
 
   OdometryTimings timings;
   const auto t0 = Clock::now();
@@ -760,7 +761,7 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
   return result;
 }
 
-bool DirectOdometry::exposure_explains_brightness() const { return impl_->exposure_known; }
+bool DirectOdometry::exposure_explains_brightness() const { return impl_->exposure_explains_brightness; }
 
 std::vector<PoseStamped> DirectOdometry::trajectory() const {
   std::vector<PoseStamped> out;

@@ -14,6 +14,7 @@
 #include "commands/app_config.hpp"
 #include "commands/source_argument.hpp"
 #include "commands/subcommand.hpp"
+#include "nirslam/common/error.hpp"
 #include "nirslam/eval/trajectory.hpp"
 #include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/session/metrics_csv_writer.hpp"
@@ -32,6 +33,7 @@ struct RunOptions {
   bool recorded_speed = false;
   std::int64_t max_frames = 0;
   double progress_interval_s = 1.0;
+  std::filesystem::path given_calibration;  // empty: the configured one (calibration.given), else online
 };
 
 bool settled(const Snapshot& s) {
@@ -67,13 +69,20 @@ struct RunTotals {
   nlohmann::json light_offset;  // the lamp offset estimate (illuminated mode), null without one
 };
 
-void write_summary(const std::filesystem::path& file, const RunOptions& options, PipelineMode mode,
+void write_summary(const std::filesystem::path& file, const RunOptions& options, const PipelineOptions& pipeline,
                    const Snapshot& last, double wall_s, const RunTotals& totals) {
+  const PipelineMode mode = pipeline.mode;
+  // Where the corrected frames' model came from: estimated online, or given as files.
+  const nlohmann::json photometric_calibration =
+      !runs_calibration(mode)                     ? nlohmann::json(nullptr)
+      : pipeline.given_calibration_folder.empty() ? nlohmann::json("online")
+                                                  : nlohmann::json(pipeline.given_calibration_folder.string());
   const double n = totals.frames > 0 ? static_cast<double>(totals.frames) : 1.0;
   nlohmann::json summary = {
       {"nirslam_version", NIRSLAM_VERSION},
       {"source", {{"argument", options.source}, {"kind", last.source.kind}, {"description", last.source.description}}},
       {"mode", std::string(to_string(mode))},
+      {"photometric_calibration", photometric_calibration},
       // Which configuration made these figures: the --config file, else the shipped one.
       {"config_file", app_config_file().empty() ? nlohmann::json(nullptr) : nlohmann::json(app_config_file().string())},
       {"state", to_string(last.state)},
@@ -155,6 +164,11 @@ int run_headless(const RunOptions& options) {
           "--mode: expected quality, odometry, calibrated, illuminated or odometry-illuminated, got '" + options.mode + "'");
     worker_options.pipeline.mode = *mode;
   }
+  if (!options.given_calibration.empty()) {
+    if (!std::filesystem::is_directory(options.given_calibration))
+      throw InputError(options.given_calibration, "--photometric-calibration: not a folder (one holding pcalib.txt and vignette.png)");
+    worker_options.pipeline.given_calibration_folder = options.given_calibration;
+  }
   const PipelineMode mode = worker_options.pipeline.mode;
 
   auto csv = std::make_shared<MetricsCsvWriter>(options.out_dir / "quality.csv");
@@ -207,7 +221,7 @@ int run_headless(const RunOptions& options) {
     write_tum(options.out_dir / "groundtruth.txt", totals.ground_truth);
     totals.files.push_back("groundtruth.txt");
   }
-  write_summary(options.out_dir / "summary.json", options, mode, *last, wall_s, totals);
+  write_summary(options.out_dir / "summary.json", options, worker_options.pipeline, *last, wall_s, totals);
 
   if (last->state == WorkerState::Failed) {
     spdlog::error("stopped after {} frames: {}", last->frames_processed, last->message);
@@ -251,6 +265,9 @@ void add_run_command(CLI::App& parent, CommandAction& action) {
   cmd->add_flag("--realtime", options->recorded_speed,
                 "Follow the recorded timestamps instead of running flat out (config: worker.pacing)");
   cmd->add_option("--max-frames", options->max_frames, "Stop after this many frames")->check(CLI::PositiveNumber);
+  cmd->add_option("--photometric-calibration", options->given_calibration,
+                  "Folder with DSO's pcalib.txt (and vignette.png), e.g. a TUM monoVO dataset or `nirslam calibrate`'s "
+                  "output: the modes with calibration hold it instead of estimating it online (config: calibration.given)");
   cmd->callback([options, &action] { action = [options] { return run_headless(*options); }; });
 }
 

@@ -93,6 +93,13 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
     if (!std::filesystem::exists(lens_file)) calibration.fail_at("lens_vignette", lens_file.string() + " does not exist");
     pipeline.lens_vignette_file = lens_file;
   }
+  if (const auto given = calibration.read_text("given")) {
+    std::filesystem::path folder(*given);
+    if (folder.is_relative()) folder = file.parent_path() / folder;
+    if (!std::filesystem::is_directory(folder))
+      calibration.fail_at("given", folder.string() + " is not a folder (one holding pcalib.txt and vignette.png)");
+    pipeline.given_calibration_folder = folder;
+  }
   calibration.reject_unknown_keys();
 
   YamlMapReader demo(root["demo"], file, "demo");

@@ -17,6 +17,7 @@ std::string_view to_string(AmbiguityResolution resolution) {
     case AmbiguityResolution::KnownExposures: return "known exposures";
     case AmbiguityResolution::PowerSweep: return "power sweep";
     case AmbiguityResolution::Normalisation: return "normalisation";
+    case AmbiguityResolution::Given: return "given calibration";
   }
   return "unknown";
 }
@@ -38,7 +39,8 @@ PhotometricBackendOptions backend_options(const OnlineCalibrationOptions& option
 // not estimated).
 std::optional<std::pair<double, double>> trusted_grey_range(const OnlineCalibrationOptions& options,
                                                             const PhotometricEstimate& model) {
-  if (options.response_from_power_sweep || !options.backend.estimate_response || !(model.grey_high > model.grey_low))
+  if (options.response_from_power_sweep || !options.given_model.empty() || !options.backend.estimate_response ||
+      !(model.grey_high > model.grey_low))
     return std::nullopt;
   return std::make_pair(model.grey_low, model.grey_high);
 }
@@ -102,6 +104,7 @@ OnlinePhotometricCalibration::OnlinePhotometricCalibration(OnlineCalibrationOpti
       backend_(backend_options(options_)) {
   if (options_.queue_capacity < 1 || options_.iterations_per_keyframe < 1 || options_.final_iterations < 1)
     throw std::invalid_argument("online photometric calibration: bad options");
+  if (!options_.given_model.empty()) options_.run_backend = false;  // a given calibration is held
   estimate_ = initial_estimate();
   exposure_.set_model(estimate_->response, estimate_->vignette, trusted_grey_range(options_, *estimate_));
   inverse_lut_.resize(256);  // filled by follow_estimate() before the first correction
@@ -121,14 +124,19 @@ std::shared_ptr<const PhotometricEstimate> OnlinePhotometricCalibration::initial
   auto e = std::make_shared<PhotometricEstimate>();
   e->response = backend_.response();
   e->vignette = backend_.vignette();
-  if (options_.response_from_power_sweep) {
+  if (!options_.given_model.empty()) {
+    e->ambiguity = AmbiguityResolution::Given;
+    e->ambiguity_detail = options_.given_model;
+  } else if (options_.response_from_power_sweep) {
     e->ambiguity = AmbiguityResolution::PowerSweep;
     e->ambiguity_detail = "response calibrated from an illuminator power sweep and held";
   } else {
     e->ambiguity = AmbiguityResolution::Normalisation;
     e->ambiguity_detail = "not yet decided (no keyframe yet)";
   }
-  e->status = options_.run_backend ? "no keyframe yet: initial model" : "back end off: initial model held";
+  e->status = !options_.given_model.empty() ? "given calibration held (no online estimation)"
+               : options_.run_backend         ? "no keyframe yet: initial model"
+                                              : "back end off: initial model held";
   if (options_.initial_grey_range) {
     e->grey_low = options_.initial_grey_range->first;
     e->grey_high = options_.initial_grey_range->second;

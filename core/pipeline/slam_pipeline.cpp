@@ -12,6 +12,7 @@
 #include <spdlog/spdlog.h>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/photometric/given_calibration.hpp"
 
 namespace nirslam {
 namespace {
@@ -80,11 +81,21 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
   // it and the corrected frames no longer show it: only raw frames need the beam term.
   if (options_.light_offset_estimation.beam_exponent < 0.0)
     options_.light_offset_estimation.beam_exponent = options_.odometry.beam_exponent;
+  const bool given_calibration = runs_calibration(options_.mode) && !options_.given_calibration_folder.empty();
   if (runs_calibration(options_.mode)) {
-    options_.odometry.beam_exponent = 0.0;
+    // An estimated halo factor holds the beam; a given lens vignette does not.
+    if (!given_calibration) options_.odometry.beam_exponent = 0.0;
     options_.odometry.brightness_exponent = options_.corrected_frame_exponent;
   } else {
     options_.odometry.brightness_exponent = options_.raw_frame_exponent;
+  }
+  if (given_calibration) {
+    const GivenPhotometricCalibration given = read_given_calibration(
+        options_.given_calibration_folder, camera_ ? camera_->width() : 0, camera_ ? camera_->height() : 0);
+    options_.calibration.backend.initial_response = given.response;
+    options_.calibration.backend.initial_vignette = given.vignette;
+    options_.calibration.given_model = given.description;
+    spdlog::info("photometric calibration given: {}", given.description);
   }
   if (runs_calibration(options_.mode))
     calibration_ = std::make_unique<OnlinePhotometricCalibration>(options_.calibration);

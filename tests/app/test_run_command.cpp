@@ -153,6 +153,28 @@ TEST(RunCommand, CalibratedModeWritesTrajectoryCalibrationAndSummary) {
   EXPECT_GE(std::count_if(poses.begin(), poses.end(), [](const std::string& l) { return !l.empty() && l[0] != '#'; }), 20);
 }
 
+TEST(RunCommand, GivenPhotometricCalibrationIsHeldAndNamed) {
+  // The simulated folder is a TUM monoVO dataset with the true pcalib.txt and vignette.png: run
+  // as DSO runs on such a folder.
+  const fs::path out = fresh_dir("given_calibration");
+  const fs::path sequence = small_room_sequence();
+  const CommandResult r = run_command(nirslam("run '" + sequence.string() + "' --mode calibrated --max-frames 20 "
+                                              "--photometric-calibration '" + sequence.string() + "' --out '" + out.string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("photometric calibration given"), std::string::npos) << r.output;
+  std::ifstream summary_file(out / "summary.json");
+  const auto summary = nlohmann::json::parse(summary_file);
+  EXPECT_EQ(summary["photometric_calibration"], sequence.string());
+  std::ifstream calibration_file(out / "calibration" / "calibration.json");
+  const auto calibration = nlohmann::json::parse(calibration_file);
+  EXPECT_EQ(calibration["ambiguity_resolution"], "given calibration") << calibration.dump(2);
+
+  const CommandResult missing = run_command(nirslam("run '" + sequence.string() + "' --mode calibrated "
+                                                    "--photometric-calibration /no/such/calibration --out '" + out.string() + "'"));
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.output.find("/no/such/calibration"), std::string::npos) << missing.output;
+}
+
 TEST(RunCommand, UnknownModeIsRefused) {
   const CommandResult r = run_command(nirslam("run demo --mode dso --out '" + fresh_dir("badmode").string() + "'"));
   EXPECT_NE(r.exit_code, 0);

@@ -50,7 +50,8 @@
 
 namespace nirslam {
 
-enum class AmbiguityResolution { KnownExposures, PowerSweep, Normalisation };
+// Given: response and vignette from files (given_calibration.hpp), held; the files fix gamma and scale.
+enum class AmbiguityResolution { KnownExposures, PowerSweep, Normalisation, Given };
 std::string_view to_string(AmbiguityResolution resolution);
 
 struct PhotometricEstimate {  // immutable once published
@@ -133,6 +134,10 @@ struct OnlineCalibrationOptions {
   // breaks brightness constancy there and tracking with it. 0: adopt every estimate at once.
   double max_correction_step_log = 0.01;
   bool run_backend = true;            // false: front end only, with the initial model held
+  // The initial model is a calibration given from files (read_given_calibration), described by
+  // this text (files and fit errors): held as it is, the back end off, every grey level trusted.
+  // Empty: the initial model is only a start.
+  std::string given_model;
   EstimateGate gate;                  // estimates that fail it are not handed on (see EstimateGate)
   // The grey range (0..255) the held initial response was fitted over (PhotometricEstimate::
   // grey_low / grey_high of the run that estimated it): the exposure estimator then trusts G

@@ -102,6 +102,12 @@ struct PipelineOptions {
   // calibration's halo factor is then split into it and the lamp's beam (beam_from_halo.hpp),
   // shown, and the beam's exponent goes to the lamp-offset estimation when none is configured.
   std::filesystem::path lens_vignette_file;
+  // A photometric calibration given as files (a folder with DSO's pcalib.txt and optionally
+  // vignette.png: a TUM monoVO dataset's, or `nirslam calibrate`'s output), held in the modes
+  // with calibration instead of estimating it online (given_calibration.hpp), as DSO runs with
+  // those files. The vignette is then the lens's alone, so the odometry's beam term
+  // (odometry.beam_exponent) stays on in the illuminated mode. Empty: estimated online.
+  std::filesystem::path given_calibration_folder;
   bool light_offset_configured = false;
   bool estimate_light_offset = true;
   bool apply_estimated_light_offset = false;

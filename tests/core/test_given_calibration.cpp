@@ -1,0 +1,173 @@
+// A photometric calibration given as DSO files (given_calibration.hpp): the fits recover the
+// model the files were written from, files the model cannot follow are refused by name, and the
+// pipeline holds the given model instead of estimating one.
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include "nirslam/common/error.hpp"
+#include "nirslam/photometric/given_calibration.hpp"
+#include "nirslam/pipeline/slam_pipeline.hpp"
+
+namespace nirslam {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kWidth = 160, kHeight = 120;
+
+fs::path fresh_folder(const std::string& name) {
+  const fs::path folder = fs::temp_directory_path() /
+                          ("nirslam_given_" + name + "_" + std::to_string(std::random_device{}()));
+  fs::create_directories(folder);
+  return folder;
+}
+
+// The files `nirslam simulate` and `nirslam calibrate` write for this model.
+fs::path write_dso_files(const std::string& name, const ResponseModel& response, const VignetteModel& vignette) {
+  const fs::path folder = fresh_folder(name);
+  write_pcalib(folder / "pcalib.txt", response.inverse_table(256));
+  write_vignette_png(folder / "vignette.png", vignette.render(kWidth, kHeight));
+  return folder;
+}
+
+TEST(GivenCalibration, ResponseFitRecoversEveryPreset) {
+  for (ResponsePreset preset : {ResponsePreset::Linear, ResponsePreset::Gamma, ResponsePreset::Log, ResponsePreset::Filmic}) {
+    const ResponseModel truth = ResponseModel::from_preset(preset);
+    std::vector<double> table = truth.inverse_table(256);
+    for (double& g : table) g *= 4.0;  // pcalib.txt's scale is free (DSO normalises by the top value)
+    const ResponseFit fit = fit_response_to_inverse_table(table);
+    EXPECT_LT((fit.response.coefficients() - truth.coefficients()).norm(), 1e-6) << to_string(preset);
+    EXPECT_LT(fit.max_grey, 0.01) << to_string(preset);
+  }
+}
+
+TEST(GivenCalibration, ResponseFitOfACurveOutsideTheBasisSaysItsError) {
+  // A pure gamma 2.2 curve is not one of the basis's curves: close, with the error said.
+  std::vector<double> table(256);
+  for (int i = 0; i < 256; ++i) table[static_cast<std::size_t>(i)] = 255.0 * std::pow(i / 255.0, 2.2);
+  const ResponseFit fit = fit_response_to_inverse_table(table);
+  EXPECT_TRUE(fit.response.is_monotonic());
+  EXPECT_GT(fit.rms_grey, 0.0);
+  EXPECT_LT(fit.rms_grey, 1.0);
+  EXPECT_LT(std::abs(255.0 * fit.response.inverse(128.0 / 255.0) - table[128]), 1.5);
+}
+
+TEST(GivenCalibration, VignetteFitRecoversTheModelUpToScale) {
+  const VignetteModel truth{Eigen::Vector3d(-0.35, 0.12, -0.08)};
+  cv::Mat image = truth.render(kWidth, kHeight) * 0.7;
+  const VignetteFit fit = fit_vignette_to_image(image);
+  EXPECT_LT((fit.vignette.v - truth.v).norm(), 1e-4) << fit.vignette.v.transpose();
+  EXPECT_LT(fit.max, 1e-4);  // the image is float
+}
+
+TEST(GivenCalibration, FolderRoundTripsAndSaysWhatItRead) {
+  const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Log);
+  const VignetteModel vignette{Eigen::Vector3d(-0.3, 0.05, -0.02)};
+  const fs::path folder = write_dso_files("roundtrip", response, vignette);
+  const GivenPhotometricCalibration given = read_given_calibration(folder, kWidth, kHeight);
+  // pcalib.txt holds G to a few decimals and vignette.png V to 16 bits: close, not exact.
+  EXPECT_LT((given.response.coefficients() - response.coefficients()).norm(), 1e-3);
+  EXPECT_LT((given.vignette.v - vignette.v).norm(), 2e-3);
+  ASSERT_TRUE(given.vignette_fit);
+  EXPECT_NE(given.description.find("pcalib.txt"), std::string::npos) << given.description;
+  EXPECT_NE(given.description.find("vignette.png"), std::string::npos) << given.description;
+
+  // Without vignette.png: no vignetting, and the description says so.
+  fs::remove(folder / "vignette.png");
+  const GivenPhotometricCalibration response_only = read_given_calibration(folder, kWidth, kHeight);
+  EXPECT_EQ(response_only.vignette.v, Eigen::Vector3d::Zero());
+  EXPECT_NE(response_only.description.find("no vignetting"), std::string::npos) << response_only.description;
+  fs::remove_all(folder);
+}
+
+std::string error_of(const fs::path& folder, int width = kWidth, int height = kHeight) {
+  try {
+    read_given_calibration(folder, width, height);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(GivenCalibration, BadFilesAreRefusedByName) {
+  const fs::path folder = write_dso_files("bad", ResponseModel::from_preset(ResponsePreset::Gamma), VignetteModel{});
+  // The vignette of another camera.
+  std::string e = error_of(folder, 320, 240);
+  EXPECT_NE(e.find("vignette.png"), std::string::npos) << e;
+  EXPECT_NE(e.find("160x120"), std::string::npos) << e;
+  // A response the model cannot follow (a hard knee: linear, then flat at the top).
+  {
+    std::ofstream out(folder / "pcalib.txt");
+    for (int i = 0; i < 256; ++i) out << (i < 200 ? i * 0.2 : 40.0 + (i - 200) * 3.9) << ' ';
+  }
+  e = error_of(folder);
+  EXPECT_NE(e.find("pcalib.txt"), std::string::npos) << e;
+  EXPECT_NE(e.find("response model"), std::string::npos) << e;
+  // A vignette the radial model cannot follow (one bright quadrant).
+  write_pcalib(folder / "pcalib.txt", ResponseModel::from_preset(ResponsePreset::Gamma).inverse_table(256));
+  cv::Mat lopsided(kHeight, kWidth, CV_32FC1, cv::Scalar(0.6f));
+  lopsided(cv::Rect(0, 0, kWidth / 2, kHeight / 2)).setTo(1.0f);
+  write_vignette_png(folder / "vignette.png", lopsided);
+  e = error_of(folder);
+  EXPECT_NE(e.find("vignette.png"), std::string::npos) << e;
+  EXPECT_NE(e.find("radial vignette model"), std::string::npos) << e;
+  // No pcalib.txt, and not a folder at all.
+  fs::remove(folder / "pcalib.txt");
+  e = error_of(folder);
+  EXPECT_NE(e.find("pcalib.txt"), std::string::npos) << e;
+  EXPECT_NE(e.find("missing"), std::string::npos) << e;
+  e = error_of(folder / "no_such_folder");
+  EXPECT_NE(e.find("no_such_folder"), std::string::npos) << e;
+  fs::remove_all(folder);
+}
+
+TEST(GivenCalibration, PipelineHoldsTheGivenModel) {
+  const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Filmic);
+  const VignetteModel vignette{Eigen::Vector3d(-0.25, 0.0, 0.0)};
+  const fs::path folder = write_dso_files("pipeline", response, vignette);
+  PipelineOptions options;
+  options.mode = PipelineMode::Calibrated;
+  options.calibration.background_thread = false;
+  options.given_calibration_folder = folder;
+  const auto camera = std::make_shared<PinholeCamera>(kWidth, kHeight, Eigen::Vector4d(130.0, 130.0, 80.0, 60.0));
+  SlamPipeline pipeline(options, camera);
+  ASSERT_NE(pipeline.calibration(), nullptr);
+  cv::Mat texture(kHeight, kWidth, CV_8UC1);
+  cv::randu(texture, 40, 200);
+  for (int i = 0; i < 12; ++i) {
+    Frame frame;
+    texture.convertTo(frame.image, CV_8UC1, 1.0, 2.0 * (i % 3));
+    frame.index = i;
+    frame.timestamp_s = i / 30.0;
+    frame.exposure_ms = 10.0 + i;
+    frame.name = "frame" + std::to_string(i);
+    const PipelineFrameResult result = pipeline.process(frame);
+    ASSERT_FALSE(result.corrected.empty());
+    // G(I)/V of the given model at the centre and at a corner (vignette 0.75 there).
+    const double grey_centre = texture.at<std::uint8_t>(kHeight / 2, kWidth / 2) + 2.0 * (i % 3);
+    const double irradiance_centre = 255.0 * response.inverse(grey_centre / 255.0) /
+                                     vignette(VignetteModel::radius(kWidth / 2, kHeight / 2, kWidth, kHeight));
+    EXPECT_NEAR(result.corrected.at<float>(kHeight / 2, kWidth / 2), irradiance_centre, 0.05 * irradiance_centre + 0.5);
+  }
+  const auto estimate = pipeline.calibration()->estimate();
+  EXPECT_EQ(estimate->model_version, 0) << "held, never re-estimated";
+  EXPECT_EQ(estimate->ambiguity, AmbiguityResolution::Given);
+  EXPECT_LT((estimate->response.coefficients() - response.coefficients()).norm(), 1e-3);
+  EXPECT_LT((estimate->vignette.v - vignette.v).norm(), 2e-3);
+  const auto view = pipeline.photometric_view();
+  EXPECT_NE(view->ambiguity.find("given calibration"), std::string::npos) << view->ambiguity;
+  EXPECT_NE(view->ambiguity.find("pcalib.txt"), std::string::npos) << view->ambiguity;
+  fs::remove_all(folder);
+}
+
+}  // namespace
+}  // namespace nirslam

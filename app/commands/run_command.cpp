@@ -223,6 +223,13 @@ int run_headless(const RunOptions& options) {
   }
   write_summary(options.out_dir / "summary.json", options, worker_options.pipeline, *last, wall_s, totals);
 
+  if (!last->pipeline_error.empty()) {
+    // The stages the mode asks for never ran: not a result to hand on.
+    spdlog::error("{}", last->pipeline_error);
+    std::printf("Only image quality was computed (%lld frames, in %s): %s\n", static_cast<long long>(csv->rows()),
+                options.out_dir.string().c_str(), last->pipeline_error.c_str());
+    return 1;
+  }
   if (last->state == WorkerState::Failed) {
     spdlog::error("stopped after {} frames: {}", last->frames_processed, last->message);
     std::printf("Partial results (%lld frames) in %s\n", static_cast<long long>(csv->rows()),

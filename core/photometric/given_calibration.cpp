@@ -29,7 +29,21 @@ ResponseFit fit_response_to_inverse_table(const std::vector<double>& inverse_res
     rhs += (y - u) * h;
   }
   fit.response = ResponseModel(normal.ldlt().solve(rhs));
-  if (!fit.response.is_monotonic()) return fit;
+  if (!fit.response.is_monotonic()) {
+    // A curve close to linear near black (f ~ X = u^2, slope 0 in u at u = 0) sits on the edge of
+    // monotonicity in this basis, and the free fit dips below 0 there (DSO's pcalib.txt of the
+    // EuRoC cameras does). Refit with the slope at black held at 0: 1 + c . dh(0) = 0, dh(0) =
+    // (1, -1, 1, -1), by least squares with that equality (the KKT system).
+    const Eigen::Vector4d slope_at_black(1.0, -1.0, 1.0, -1.0);
+    Eigen::Matrix<double, 5, 5> kkt = Eigen::Matrix<double, 5, 5>::Zero();
+    kkt.topLeftCorner<4, 4>() = normal;
+    kkt.block<4, 1>(0, 4) = slope_at_black;
+    kkt.block<1, 4>(4, 0) = slope_at_black.transpose();
+    Eigen::Matrix<double, 5, 1> right;
+    right << rhs, -1.0;
+    fit.response = ResponseModel(kkt.fullPivLu().solve(right).head<4>());
+    if (!fit.response.is_monotonic()) return fit;
+  }
   // The error where the correction uses it: G, on the table's own grey levels.
   const std::vector<double> fitted = fit.response.inverse_table(static_cast<int>(n));
   double sum_squares = 0.0;

@@ -544,6 +544,7 @@ void Worker::restart_pipeline() {
 
 void Worker::set_pipeline_views(Snapshot& snapshot) {
   snapshot.pipeline_mode = std::string(to_string(options_.pipeline.mode));
+  snapshot.pipeline_error = pipeline_error_;
   if (pipeline_) {
     snapshot.photometric = pipeline_->photometric_view();
     snapshot.trajectory = pipeline_->trajectory_view();

@@ -34,18 +34,26 @@ TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
   EXPECT_TRUE(fs::exists(out / "runs/Room_50/calibrated/trajectory.txt"));
   EXPECT_TRUE(fs::exists(out / "runs/Room_50/illuminated/trajectory.txt"));
 
-  // A second bench reuses the rendered sequence, and hands its --config to every run.
+  // A second bench reuses the rendered sequence, and hands its --config to every run; with
+  // --dataset-calibration the calibrated runs hold the sequence's own (here: true) calibration.
   const fs::path config = out / "my-pipeline.yaml";
   fs::copy_file(fs::path(NIRSLAM_SOURCE_DIR) / "config/pipeline.yaml", config);
   const CommandResult again = run_command(nirslam("--config '" + config.string() +
-                                                  "' bench --scenes room --powers 50 --frames 40 --size 320x240 --modes odometry --out '" +
-                                                  out.string() + "'"));
+                                                  "' bench --scenes room --powers 50 --frames 40 --size 320x240 --modes calibrated "
+                                                  "--dataset-calibration --out '" + out.string() + "'"));
   ASSERT_EQ(again.exit_code, 0) << again.output;
   EXPECT_EQ(again.output.find("rendering"), std::string::npos) << again.output;
-  const auto summary = lines_of(out / "runs/Room_50/odometry/summary.json");
-  bool names_config = false;
-  for (const std::string& line : summary) names_config |= line.find("my-pipeline.yaml") != std::string::npos;
+  const auto summary = lines_of(out / "runs/Room_50/calibrated/summary.json");
+  bool names_config = false, names_calibration = false;
+  for (const std::string& line : summary) {
+    names_config |= line.find("my-pipeline.yaml") != std::string::npos;
+    names_calibration |= line.find("\"photometric_calibration\": \"" + (out / "sequences").string()) != std::string::npos;
+  }
   EXPECT_TRUE(names_config) << "the run's summary names bench's --config file";
+  EXPECT_TRUE(names_calibration) << "the run's summary names the given calibration";
+  const auto given_md = lines_of(out / "bench.md");
+  ASSERT_FALSE(given_md.empty());
+  EXPECT_EQ(given_md[0].rfind("Photometric calibration in the calibrated modes: given", 0), 0u) << given_md[0];
 }
 
 TEST(BenchCommand, QualityIsNotAnOdometryMode) {

@@ -173,6 +173,15 @@ TEST(RunCommand, GivenPhotometricCalibrationIsHeldAndNamed) {
                                                     "--photometric-calibration /no/such/calibration --out '" + out.string() + "'"));
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.output.find("/no/such/calibration"), std::string::npos) << missing.output;
+
+  // A folder whose files the pipeline refuses (here: no pcalib.txt) fails the run by name,
+  // instead of a run that quietly computed image quality only.
+  const fs::path empty = fresh_dir("given_calibration_empty");
+  fs::create_directories(empty);
+  const CommandResult refused = run_command(nirslam("run '" + sequence.string() + "' --mode calibrated --max-frames 5 "
+                                                    "--photometric-calibration '" + empty.string() + "' --out '" + out.string() + "'"));
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_NE(refused.output.find((empty / "pcalib.txt").string()), std::string::npos) << refused.output;
 }
 
 TEST(RunCommand, UnknownModeIsRefused) {

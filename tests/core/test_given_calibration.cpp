@@ -69,6 +69,19 @@ TEST(GivenCalibration, VignetteFitRecoversTheModelUpToScale) {
   EXPECT_LT(fit.max, 1e-4);  // the image is float
 }
 
+TEST(GivenCalibration, RealEurocEstimateFits) {
+  // DSO files made by others for the EuRoC cameras (online photometric calibration, not ground
+  // truth): a response close to linear, which the free fit bends below 0 near black.
+  const fs::path folder = fs::path(NIRSLAM_SHARED_DATA_DIR) / "euroc_v1_01_micro" / "photometric_estimate";
+  const GivenPhotometricCalibration given = read_given_calibration(folder, 752, 480);
+  EXPECT_TRUE(given.response.is_monotonic());
+  EXPECT_LT(given.response_fit.rms_grey, 1.0);
+  EXPECT_LT(given.response_fit.max_grey, 2.5);
+  ASSERT_TRUE(given.vignette_fit);
+  EXPECT_LT(given.vignette_fit->rms, 0.001);
+  EXPECT_LT(given.vignette(1.0), 0.85) << "the corners are darker";
+}
+
 TEST(GivenCalibration, FolderRoundTripsAndSaysWhatItRead) {
   const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Log);
   const VignetteModel vignette{Eigen::Vector3d(-0.3, 0.05, -0.02)};

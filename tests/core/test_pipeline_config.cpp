@@ -1,3 +1,4 @@
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -49,6 +50,13 @@ TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
       load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-repeatable.yaml");
   EXPECT_FALSE(config.worker.pipeline.calibration.background_thread);
   EXPECT_EQ(config.worker.pipeline.mode, PipelineOptions{}.mode);
+}
+
+TEST(PipelineConfig, GivenCalibrationBenchFileAddsTheBeam) {
+  const PipelineConfig config =
+      load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-given-calibration.yaml");
+  EXPECT_FALSE(config.worker.pipeline.calibration.background_thread);
+  EXPECT_NEAR(config.worker.pipeline.odometry.beam_exponent, std::log(0.5) / std::log(std::cos(30.0 * M_PI / 180.0)), 0.01);
 }
 
 TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {

@@ -29,8 +29,9 @@ struct ResponseFit {
 
 // The response whose inverse is closest to `inverse_response` (pcalib.txt's G[0..n-1], any
 // scale: normalised so that G[n-1] is full scale), by least squares on f(G[i] / G[n-1]) =
-// i / (n - 1) in the basis of response_model.hpp. The fit may come out non-monotonic for
-// tables the basis cannot follow; ResponseFit::response.is_monotonic() says.
+// i / (n - 1) in the basis of response_model.hpp; when that dips near black (curves close to
+// linear there), again with the slope at black held at 0. The fit may still come out
+// non-monotonic for tables the basis cannot follow; ResponseFit::response.is_monotonic() says.
 ResponseFit fit_response_to_inverse_table(const std::vector<double>& inverse_response);
 
 struct VignetteFit {

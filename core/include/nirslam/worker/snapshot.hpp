@@ -73,6 +73,9 @@ struct Snapshot {
   std::shared_ptr<const IlluminationStatus> illumination;
   PipelineFrameInfo stages;    // of `frame`
   std::string pipeline_mode;   // "quality", "odometry", "calibrated", ... (PipelineMode)
+  // Why the pipeline could not be built for this source (e.g. a given calibration file it
+  // refused); the frames then get image quality only. Empty when it runs.
+  std::string pipeline_error;
   // The frame as the odometry saw it: G(I)/V, CV_32FC1 on the 0..255 scale, when the mode corrects
   // frames; empty otherwise. Shares the pipeline's buffer, never written after publishing.
   cv::Mat corrected_image;

@@ -34,10 +34,6 @@ struct RunOptions {
   double progress_interval_s = 1.0;
 };
 
-bool settled(const Snapshot& s) {
-  return s.state == WorkerState::Finished || s.state == WorkerState::Failed;
-}
-
 double peak_memory_mib() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);

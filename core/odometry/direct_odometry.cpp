@@ -9,6 +9,7 @@
 
 #include "nirslam/odometry/coarse_initializer.hpp"
 #include "nirslam/odometry/coarse_tracker.hpp"
+#include "nirslam/common/elapsed.hpp"
 #include "nirslam/common/helper_thread.hpp"
 #include "nirslam/odometry/image_pyramid.hpp"
 #include "nirslam/odometry/immature_point.hpp"
@@ -33,9 +34,6 @@ const char* to_string(TrackingStatus status) {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 // A keyframe's public state plus the window's id for it, shared by the frames it anchors.
 struct KeyframeRecord : KeyframeState {

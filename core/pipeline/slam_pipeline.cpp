@@ -11,16 +11,13 @@
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
+#include "nirslam/common/elapsed.hpp"
 #include "nirslam/common/error.hpp"
 
 namespace nirslam {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 // Poses with ground truth needed before the view is aligned to it: fewer cannot fix a Sim(3)
 // reliably on a short, nearly straight start.

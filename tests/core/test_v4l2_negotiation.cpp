@@ -12,6 +12,7 @@
 #include "nirslam/capture/device_info.hpp"
 #include "nirslam/capture/v4l2_camera.hpp"
 #include "test_v4l2_fixtures.hpp"
+#include "text_contains.hpp"
 
 namespace nirslam {
 namespace {
@@ -19,7 +20,6 @@ namespace {
 using testing::emulator_with;
 using testing::small_camera;
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 TEST(V4l2Negotiation, EnumeratesDevicesFormatsSizesRatesAndControls) {
   auto emulator = std::make_shared<EmulatedUvc>();

@@ -12,7 +12,7 @@
 
 #include "nirslam/common/error.hpp"
 #include "nirslam/sources/read_ahead.hpp"
-#include "counting.hpp"
+#include "counting_source.hpp"
 
 namespace nirslam {
 namespace {

@@ -256,4 +256,12 @@ void section_title(const char* text) {
   ImGui::Separator();
 }
 
+void plot_title(const char* title, const char* detail) {
+  ImGui::TextUnformatted(title);
+  if (detail != nullptr && *detail != '\0') {
+    ImGui::SameLine(0.0f, 6.0f);
+    ImGui::TextColored(to_vec4(colours::text_dim), "%s", detail);
+  }
+}
+
 }  // namespace nirslam::ui

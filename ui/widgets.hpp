@@ -49,6 +49,9 @@ ScreenRect last_item_rect();
 // A dim caption over a separator, heading a column of a panel.
 void section_title(const char* text);
 
+// A plot's title with a dim detail after it on the same line (none when `detail` is empty).
+void plot_title(const char* title, const char* detail);
+
 // Copies `text` into a fixed ImGui text buffer, cut to fit, always terminated.
 template <std::size_t N>
 void copy_into(std::array<char, N>& buffer, const std::string& text) {

@@ -27,8 +27,6 @@ struct RecordOptions {
   bool recorded_speed = false;
 };
 
-bool settled(const Snapshot& s) { return s.state == WorkerState::Finished || s.state == WorkerState::Failed; }
-
 int record_headless(const RecordOptions& options) {
   SourceFactory factory = source_factory_from_argument(options.source);
   if (options.max_frames > 0) factory = [factory, n = options.max_frames] { return limit_frames(factory(), n); };

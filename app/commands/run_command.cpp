@@ -36,10 +36,6 @@ struct RunOptions {
   std::filesystem::path given_calibration;  // empty: the configured one (calibration.given), else online
 };
 
-bool settled(const Snapshot& s) {
-  return s.state == WorkerState::Finished || s.state == WorkerState::Failed;
-}
-
 double peak_memory_mib() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);

@@ -18,11 +18,6 @@
 #include "ui/ui_context.hpp"
 
 namespace nirslam::app {
-namespace {
-
-bool settled(WorkerState state) { return state == WorkerState::Finished || state == WorkerState::Failed; }
-
-}  // namespace
 
 void check_screenshot_folder(const std::filesystem::path& path) {
   const auto parent = path.parent_path();
@@ -88,7 +83,7 @@ HeadlessResult run_headless(Worker& worker, const HeadlessOptions& options) {
 
   HeadlessResult result;
   result.renderer = egl.description();
-  const auto done = [&](const Snapshot& s) { return s.frames_processed >= options.frames || settled(s.state); };
+  const auto done = [&](const Snapshot& s) { return s.frames_processed >= options.frames || settled(s); };
 
   using Clock = std::chrono::steady_clock;
   const auto started = Clock::now();

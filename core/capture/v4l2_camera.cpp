@@ -17,7 +17,7 @@ namespace {
 
 bool gone(int error_number) { return error_number == ENODEV || error_number == EIO || error_number == ENXIO; }
 
-std::string size_text(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
+std::string frame_size_text(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
 
 std::string offered_formats(const DeviceInfo& info) {
   std::string list;
@@ -27,7 +27,7 @@ std::string offered_formats(const DeviceInfo& info) {
 
 std::string offered_sizes(const FormatInfo& format) {
   std::string list;
-  for (const FrameSizeInfo& s : format.sizes) list += (list.empty() ? "" : ", ") + size_text(s.width, s.height);
+  for (const FrameSizeInfo& s : format.sizes) list += (list.empty() ? "" : ", ") + frame_size_text(s.width, s.height);
   return list.empty() ? "none listed" : list;
 }
 
@@ -103,7 +103,7 @@ NegotiatedFormat V4l2Camera::configure(const StreamRequest& request) {
     bool listed = false;
     for (const FrameSizeInfo& s : chosen->sizes) listed = listed || (s.width == width && s.height == height);
     if (!listed)
-      throw InputError(node_, "size", size_text(width, height) + " is not offered in " + chosen->name + "; sizes: " +
+      throw InputError(node_, "size", frame_size_text(width, height) + " is not offered in " + chosen->name + "; sizes: " +
                                           offered_sizes(*chosen));
   }
 
@@ -119,8 +119,8 @@ NegotiatedFormat V4l2Camera::configure(const StreamRequest& request) {
     throw InputError(node_, "format", "the driver would not take " + chosen->name + " (it chose " +
                                           fourcc_to_string(fmt.fmt.pix.pixelformat) + ")");
   if (static_cast<int>(fmt.fmt.pix.width) != width || static_cast<int>(fmt.fmt.pix.height) != height)
-    throw InputError(node_, "size", "the driver would not take " + size_text(width, height) + " (it chose " +
-                                        size_text(static_cast<int>(fmt.fmt.pix.width), static_cast<int>(fmt.fmt.pix.height)) + ")");
+    throw InputError(node_, "size", "the driver would not take " + frame_size_text(width, height) + " (it chose " +
+                                        frame_size_text(static_cast<int>(fmt.fmt.pix.width), static_cast<int>(fmt.fmt.pix.height)) + ")");
 
   format_ = {};
   format_.layout = {format, width, height, static_cast<int>(fmt.fmt.pix.bytesperline)};

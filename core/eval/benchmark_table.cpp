@@ -18,7 +18,7 @@ std::string ate_cell(const BenchmarkRun* run) {
   return cell;
 }
 
-std::string optional_number(const std::optional<double>& value, const char* format) {
+std::string formatted_or_blank(const std::optional<double>& value, const char* format) {
   return value ? fmt::format(fmt::runtime(format), *value) : std::string();
 }
 
@@ -103,7 +103,7 @@ void write_benchmark_csv(const std::filesystem::path& file, const BenchmarkTable
         continue;
       }
       path = std::max(path, run->path_length_m);
-      out << ',' << optional_number(run->ate_rmse_m, "{:.6f}") << ',' << run->segments << ','
+      out << ',' << formatted_or_blank(run->ate_rmse_m, "{:.6f}") << ',' << run->segments << ','
           << fmt::format("{:.4f}", run->tracked_fraction) << ',' << fmt::format("{:.2f}", run->frames_per_second) << ','
           << fmt::format("{:.1f}", run->peak_memory_mib);
     }
@@ -113,7 +113,7 @@ void write_benchmark_csv(const std::filesystem::path& file, const BenchmarkTable
       const BenchmarkRun* b = table.find(sequence, table.modes.back());
       gain = improvement_percent(a ? a->ate_rmse_m : std::nullopt, b ? b->ate_rmse_m : std::nullopt);
     }
-    out << ',' << fmt::format("{:.4f}", path) << ',' << optional_number(gain, "{:.2f}") << '\n';
+    out << ',' << fmt::format("{:.4f}", path) << ',' << formatted_or_blank(gain, "{:.2f}") << '\n';
   }
   out.flush();
   if (!out) throw std::runtime_error(file.string() + ": write failed (disk full?)");

@@ -17,13 +17,13 @@ namespace nirslam {
 namespace {
 
 const cv::Scalar kWhite(255, 255, 255);
-const cv::Scalar kText(30, 30, 30);
+const cv::Scalar kLabelColor(30, 30, 30);
 const cv::Scalar kFrame(60, 60, 60);
-const cv::Scalar kGrid(228, 228, 228);
+const cv::Scalar kGridColor(228, 228, 228);
 const cv::Scalar kGroundTruth(110, 110, 110);
 
 // A "nice" step (1, 2 or 5 times a power of ten) that cuts `range` into about `count` parts.
-double nice_step(double range, double count) {
+double grid_step(double range, double count) {
   const double raw = range / count;
   const double power = std::pow(10.0, std::floor(std::log10(raw)));
   for (const double m : {1.0, 2.0, 5.0, 10.0})
@@ -33,7 +33,7 @@ double nice_step(double range, double count) {
 
 int decimals_for(double step) { return std::max(0, static_cast<int>(-std::floor(std::log10(step) + 1e-9))); }
 
-std::string tick_label(double value, int decimals) {
+std::string fixed_decimals_label(double value, int decimals) {
   if (std::abs(value) < 1e-12) value = 0.0;  // no "-0.0"
   std::array<char, 48> buffer{};
   std::snprintf(buffer.data(), buffer.size(), "%.*f", decimals, value);
@@ -55,7 +55,7 @@ cv::Size text_size(const std::string& text, int face, double scale, int thicknes
 
 // Text with its left end at x and its baseline at y.
 void put(cv::Mat& image, const std::string& text, cv::Point origin, double scale, int thickness,
-         int face = cv::FONT_HERSHEY_SIMPLEX, const cv::Scalar& color = kText) {
+         int face = cv::FONT_HERSHEY_SIMPLEX, const cv::Scalar& color = kLabelColor) {
   cv::putText(image, text, origin, face, scale, color, thickness, cv::LINE_AA);
 }
 
@@ -170,23 +170,23 @@ cv::Mat render_error_heat_map(const std::vector<Eigen::Vector3d>& ground_truth,
   };
 
   // --- Grid and ticks (same step on both axes: equal aspect).
-  const double step = nice_step(std::max(view_u, view_v), 8.0);
+  const double step = grid_step(std::max(view_u, view_v), 8.0);
   const int decimals = decimals_for(step);
   cv::Mat area = canvas(plot);
   for (double u = std::ceil(u0 / step) * step; u <= u0 + view_u; u += step) {
     const int x = static_cast<int>(std::lround((u - u0) * pixels_per_m));
-    cv::line(area, {x, 0}, {x, plot.height - 1}, kGrid, 1);
+    cv::line(area, {x, 0}, {x, plot.height - 1}, kGridColor, 1);
     cv::line(canvas, {plot.x + x, plot.y + plot.height}, {plot.x + x, plot.y + plot.height + px(6)}, kFrame, 1);
-    const std::string label = tick_label(u, decimals);
+    const std::string label = fixed_decimals_label(u, decimals);
     const cv::Size size = text_size(label, cv::FONT_HERSHEY_SIMPLEX, f.tick, f.thickness);
     put(canvas, label, {plot.x + x - size.width / 2, plot.y + plot.height + px(10) + size.height}, f.tick, f.thickness);
   }
   int widest_v_label = 0;
   for (double v = std::ceil(v0 / step) * step; v <= v0 + view_v; v += step) {
     const int y = plot.height - static_cast<int>(std::lround((v - v0) * pixels_per_m));
-    cv::line(area, {0, y}, {plot.width - 1, y}, kGrid, 1);
+    cv::line(area, {0, y}, {plot.width - 1, y}, kGridColor, 1);
     cv::line(canvas, {plot.x - px(6), plot.y + y}, {plot.x, plot.y + y}, kFrame, 1);
-    const std::string label = tick_label(v, decimals);
+    const std::string label = fixed_decimals_label(v, decimals);
     const cv::Size size = text_size(label, cv::FONT_HERSHEY_SIMPLEX, f.tick, f.thickness);
     widest_v_label = std::max(widest_v_label, size.width);
     put(canvas, label, {plot.x - px(10) - size.width, plot.y + y + size.height / 2}, f.tick, f.thickness);
@@ -214,7 +214,7 @@ cv::Mat render_error_heat_map(const std::vector<Eigen::Vector3d>& ground_truth,
                  cv::FILLED, cv::LINE_AA, kShift);
   // Start of the ground truth (or of the estimate): a hollow black circle.
   const Eigen::Vector3d& start = ground_truth.empty() ? estimate.front() : ground_truth.front();
-  cv::circle(area, fixed(to_pixel(start)), px(8) * (1 << kShift), kText, std::max(1, px(2)), cv::LINE_AA, kShift);
+  cv::circle(area, fixed(to_pixel(start)), px(8) * (1 << kShift), kLabelColor, std::max(1, px(2)), cv::LINE_AA, kShift);
   cv::rectangle(canvas, plot, kFrame, 1);
 
   // --- Axis labels.
@@ -237,13 +237,13 @@ cv::Mat render_error_heat_map(const std::vector<Eigen::Vector3d>& ground_truth,
     cv::line(canvas, {bar.x, bar.y + row}, {bar.x + bar.width - 1, bar.y + row}, color_of(table, error, color_max), 1);
   }
   cv::rectangle(canvas, bar, kFrame, 1);
-  const double bar_step = nice_step(color_max, 5.0);
+  const double bar_step = grid_step(color_max, 5.0);
   const int bar_decimals = decimals_for(bar_step);
   int widest_bar_label = 0;
   for (double e = 0.0; e <= color_max * (1.0 + 1e-9); e += bar_step) {
     const int y = bar.y + bar.height - 1 - static_cast<int>(std::lround(e / color_max * (bar.height - 1)));
     cv::line(canvas, {bar.x + bar.width, y}, {bar.x + bar.width + px(6), y}, kFrame, 1);
-    const std::string label = tick_label(e, bar_decimals);
+    const std::string label = fixed_decimals_label(e, bar_decimals);
     const cv::Size size = text_size(label, cv::FONT_HERSHEY_SIMPLEX, f.tick, f.thickness);
     widest_bar_label = std::max(widest_bar_label, size.width);
     put(canvas, label, {bar.x + bar.width + px(9), y + size.height / 2}, f.tick, f.thickness);
@@ -270,7 +270,7 @@ cv::Mat render_error_heat_map(const std::vector<Eigen::Vector3d>& ground_truth,
                color_of(table, color_max * k / (sample - 1.0), color_max), 1);
     put(canvas, est_text, {x + sample + gap, y}, f.tick, f.thickness);
     x += sample + gap + w_est + spacing;
-    cv::circle(canvas, {x + px(8), mid}, px(7), kText, std::max(1, px(2)), cv::LINE_AA);
+    cv::circle(canvas, {x + px(8), mid}, px(7), kLabelColor, std::max(1, px(2)), cv::LINE_AA);
     put(canvas, start_text, {x + px(16) + gap, y}, f.tick, f.thickness);
   }
   return canvas;

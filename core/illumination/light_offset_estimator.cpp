@@ -8,20 +8,9 @@
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 
+#include "nirslam/common/huber.hpp"
+
 namespace nirslam {
-namespace {
-
-double huber_weight(double r, double delta) {
-  const double a = std::abs(r);
-  return a <= delta ? 1.0 : delta / a;
-}
-
-double huber_cost(double r, double delta) {
-  const double a = std::abs(r);
-  return a <= delta ? 0.5 * r * r : delta * (a - 0.5 * delta);
-}
-
-}  // namespace
 
 LightOffsetEstimator::LightOffsetEstimator(LightOffsetEstimatorOptions options) : options_(options) {}
 
@@ -116,7 +105,7 @@ double LightOffsetEstimator::robust_cost(const Eigen::Vector3d& light, double* r
       const double f = log_falloff(observations_[k], light, nullptr, options_.beam_exponent);
       if (!std::isfinite(f)) continue;
       const double r = observations_[k].log_irradiance - albedo - f;
-      cost += huber_cost(r, options_.huber_log);
+      cost += huber_loss(r, options_.huber_log);
       sum_r2 += r * r;
       ++n;
       if (robust_sigma) absolute.push_back(std::abs(r));

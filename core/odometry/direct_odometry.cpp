@@ -9,6 +9,7 @@
 
 #include "nirslam/odometry/coarse_initializer.hpp"
 #include "nirslam/odometry/coarse_tracker.hpp"
+#include "nirslam/common/elapsed.hpp"
 #include "nirslam/common/helper_thread.hpp"
 #include "nirslam/odometry/image_pyramid.hpp"
 #include "nirslam/odometry/immature_point.hpp"
@@ -33,29 +34,29 @@ const char* to_string(TrackingStatus status) {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-// A keyframe's public state plus the window's id for it, shared by the frames it anchors.
-struct KeyframeRecord : KeyframeState {
-  std::int64_t id = 0;
-};
-
-struct FrameRecord {
-  std::int64_t frame_index = 0;
-  double timestamp_s = 0.0;
-  int segment = 0;
-  std::shared_ptr<KeyframeRecord> keyframe;
-  SE3 T_kf_frame;
-};
 
 constexpr double kPosePriorWeight = 1e10;
 constexpr double kInitialPointPriorWeight = 10.0;
 
 }  // namespace
 
+// The records are Impl's own types, not file-local ones: a class with external linkage may hold
+// members of anonymous-namespace types only in the main file of a translation unit
+// (-Wsubobject-linkage), and in a unity build this file is not the main one.
 struct DirectOdometry::Impl {
+  // A keyframe's public state plus the window's id for it, shared by the frames it anchors.
+  struct KeyframeRecord : KeyframeState {
+    std::int64_t id = 0;
+  };
+
+  struct FrameRecord {
+    std::int64_t frame_index = 0;
+    double timestamp_s = 0.0;
+    int segment = 0;
+    std::shared_ptr<KeyframeRecord> keyframe;
+    SE3 T_kf_frame;
+  };
+
   Impl(const PinholeCamera& camera, const OdometryOptions& o) : options(o) {
     LevelCamera base{camera.fx(), camera.fy(), camera.cx(), camera.cy(), camera.width(), camera.height()};
     levels = usable_levels(camera.width(), camera.height(), o.pyramid_levels, o.min_coarsest_width);

@@ -23,7 +23,7 @@ namespace {
   throw std::runtime_error(file.string() + ": cannot write (" + (errno ? std::strerror(errno) : "stream error") + ")");
 }
 
-nlohmann::json optional_number(const std::optional<double>& value) {
+nlohmann::json json_number_or_null(const std::optional<double>& value) {
   return value && std::isfinite(*value) ? nlohmann::json(*value) : nlohmann::json(nullptr);
 }
 
@@ -147,8 +147,8 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
   for (const ExposureSample& s : exposures)
     frames.push_back({{"index", s.frame_index},
                       {"timestamp_s", s.timestamp_s},
-                      {"exposure_estimated", optional_number(s.estimated)},
-                      {"exposure_reported", optional_number(s.reported)},
+                      {"exposure_estimated", json_number_or_null(s.estimated)},
+                      {"exposure_reported", json_number_or_null(s.reported)},
                       {"status", static_cast<int>(s.status)}});
   nlohmann::json keyframes = nlohmann::json::array();
   for (const auto& [index, exposure] : estimate.keyframe_exposures) keyframes.push_back({{"index", index}, {"exposure", exposure}});

@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/common/huber.hpp"
 #include "nirslam/common/text_fields.hpp"
 
 namespace nirslam {
@@ -28,15 +29,6 @@ std::string to_string(SweepAmbiguityResolution resolution) {
 }
 
 namespace {
-
-double huber_cost(double r, double delta) {
-  const double a = std::abs(r);
-  return a <= delta ? r * r : 2.0 * delta * a - delta * delta;
-}
-double huber_weight(double r, double delta) {
-  const double a = std::abs(r);
-  return a <= delta ? 1.0 : delta / a;
-}
 
 constexpr int kMonotonicGrid = 256;
 constexpr double kMinSlope = 0.01;  // df/du lower bound enforced by the penalty
@@ -271,7 +263,7 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
       for (int k = point_begin[static_cast<std::size_t>(i)]; k < point_begin[static_cast<std::size_t>(i) + 1]; ++k) {
         const Observation& o = observations[static_cast<std::size_t>(k)];
         const double r = sweep_prediction(cc, l[static_cast<std::size_t>(i)] + s[static_cast<std::size_t>(o.image)]) - o.grey;
-        cost += huber_cost(r, delta);
+        cost += twice_huber_loss(r, delta);
       }
     cost += prior_weight * (cc - c_prior).squaredNorm();
     Eigen::Vector4d h, dh;

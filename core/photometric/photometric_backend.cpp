@@ -10,20 +10,13 @@
 
 #include <Eigen/Cholesky>
 
+#include "nirslam/common/huber.hpp"
+
 namespace nirslam {
 
 namespace {
 
 constexpr int kInverseTableSize = 1025;
-
-double huber_cost(double s, double delta) {
-  const double a = std::abs(s);
-  return a <= delta ? s * s : 2.0 * delta * a - delta * delta;
-}
-double huber_weight(double s, double delta) {
-  const double a = std::abs(s);
-  return a <= delta ? 1.0 : delta / a;
-}
 
 double f_of_u(const Eigen::Vector4d& c, double u, double* slope) {
   Eigen::Vector4d h, dh;
@@ -449,7 +442,7 @@ double PhotometricBackend::data_cost(const State& state, double delta) const {
       const Observation& o = observations_[static_cast<std::size_t>(i)];
       const double s = bounded(o, scaled_residual(state, pi, static_cast<std::size_t>(i), slope)) *
                        std::sqrt(model_noise_weight(state.u[static_cast<std::size_t>(i)], slope));
-      cost += o.gradient_weight * huber_cost(s, delta);
+      cost += o.gradient_weight * twice_huber_loss(s, delta);
     }
   }
   return cost;

@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
+#include "nirslam/common/elapsed.hpp"
 #include "nirslam/common/error.hpp"
 #include "nirslam/photometric/given_calibration.hpp"
 
@@ -18,10 +19,6 @@ namespace nirslam {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 // Poses with ground truth needed before the view is aligned to it: fewer cannot fix a Sim(3)
 // reliably on a short, nearly straight start.

@@ -10,7 +10,7 @@
 namespace nirslam {
 namespace {
 
-void check_grey(const cv::Mat& image, int bit_depth) {
+void check_gradient_energy_input(const cv::Mat& image, int bit_depth) {
   if (image.empty()) throw std::invalid_argument("gradient energy: empty image");
   if (image.type() == CV_8UC1 && bit_depth == 8) return;
   if (image.type() == CV_16UC1 && bit_depth >= 9 && bit_depth <= 16) return;
@@ -92,7 +92,7 @@ void count_into(std::span<const cv::KeyPoint> points, cv::Size size, FeatureGrid
 }  // namespace
 
 double gradient_energy(const cv::Mat& image, int bit_depth) {
-  check_grey(image, bit_depth);
+  check_gradient_energy_input(image, bit_depth);
   if (image.rows < 2 || image.cols < 2) return 0.0;
   const std::uint64_t sum =
       image.depth() == CV_8U ? squared_differences_8bit(image) : squared_differences_16bit(image, bit_depth);

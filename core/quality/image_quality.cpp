@@ -77,7 +77,7 @@ Scan scan_16bit(const cv::Mat& image, int bit_depth) {
   return scan;
 }
 
-void check_grey(const cv::Mat& image, int bit_depth) {
+void check_quality_input(const cv::Mat& image, int bit_depth) {
   if (image.empty()) throw std::invalid_argument("image quality: empty image");
   if (image.type() == CV_8UC1 && bit_depth == 8) return;
   if (image.type() == CV_16UC1 && bit_depth >= 9 && bit_depth <= 16) return;
@@ -87,7 +87,7 @@ void check_grey(const cv::Mat& image, int bit_depth) {
 }
 
 Scan scan(const cv::Mat& image, int bit_depth) {
-  check_grey(image, bit_depth);
+  check_quality_input(image, bit_depth);
   return image.depth() == CV_8U ? scan_8bit(image) : scan_16bit(image, bit_depth);
 }
 

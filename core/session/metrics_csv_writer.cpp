@@ -9,7 +9,7 @@
 namespace nirslam {
 namespace {
 
-std::string optional_number(const std::optional<double>& value) {
+std::string csv_number_or_blank(const std::optional<double>& value) {
   return value ? fmt::format("{:.6f}", *value) : std::string();
 }
 
@@ -30,13 +30,13 @@ void MetricsCsvWriter::write(const Snapshot& snapshot) {
   const PipelineFrameInfo& stages = snapshot.stages;
   out_ << fmt::format("{},{:.9f},{},{},{:.9f},{:.9f},{:.9f},{:.3f},{:.3f},{:.9f},{:.9f},{:.9f},{},{:.6f},{:.6f},"
                       "{:.3f},{:.3f},{:.3f},{},{},{},{}\n",
-                      frame.index, frame.timestamp_s, optional_number(frame.exposure_ms),
-                      optional_number(frame.illuminator_power_w ? frame.illuminator_power_w
+                      frame.index, frame.timestamp_s, csv_number_or_blank(frame.exposure_ms),
+                      csv_number_or_blank(frame.illuminator_power_w ? frame.illuminator_power_w
                                                                 : snapshot.illuminator_power_w),
                       q.entropy_bits, q.saturated_fraction, q.black_fraction, snapshot.timings.read_ms,
                       snapshot.timings.quality_ms, q.mean, q.rms_contrast, st.gradient_energy, st.feature_count,
                       st.coverage, st.evenness, snapshot.timings.photometric_ms, snapshot.timings.odometry_ms,
-                      snapshot.timings.mapping_ms, optional_number(stages.exposure_estimate), stages.tracking,
+                      snapshot.timings.mapping_ms, csv_number_or_blank(stages.exposure_estimate), stages.tracking,
                       stages.keyframe ? 1 : 0, stages.tracking.empty() ? std::string() : fmt::format("{:.3f}", stages.residual_rms))
        << std::flush;
   check("cannot write");

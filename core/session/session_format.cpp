@@ -40,7 +40,7 @@ void fsync_folder(const fs::path& folder) {
   if (::fsync(dir.fd) != 0) throw_errno(errno, folder, "cannot sync the folder");
 }
 
-std::string optional_number(const std::optional<double>& value) {
+std::string journal_number_or_blank(const std::optional<double>& value) {
   return value ? fmt::format("{:.9g}", *value) : std::string();
 }
 
@@ -215,8 +215,8 @@ void write_session_metadata(const fs::path& session_folder, const SessionMetadat
 
 std::string format_journal_line(const JournalEntry& e) {
   return fmt::format("{},{},{:.9f},{},{},{},{},{},{},{},{},{}\n", e.position, e.source_index, e.timestamp_s,
-                     optional_number(e.exposure_ms), optional_number(e.gain), optional_number(e.illuminator_power_w),
-                     optional_number(e.entropy_bits), e.bit_depth, e.file, e.bytes, format_pose(e.T_world_cam),
+                     journal_number_or_blank(e.exposure_ms), journal_number_or_blank(e.gain), journal_number_or_blank(e.illuminator_power_w),
+                     journal_number_or_blank(e.entropy_bits), e.bit_depth, e.file, e.bytes, format_pose(e.T_world_cam),
                      format_pose(e.T_world_cam_truth));
 }
 

@@ -8,6 +8,7 @@
 
 #include "kernels.hpp"
 #include "layout.hpp"
+#include "nirslam/common/text_fields.hpp"
 #include "nirslam/sim/texture.hpp"
 
 namespace nirslam::sim {
@@ -35,13 +36,6 @@ public:
 private:
   std::uint64_t state_;
 };
-
-std::string lowercase(std::string_view text) {
-  std::string out(text);
-  std::transform(out.begin(), out.end(), out.begin(),
-                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-  return out;
-}
 
 class Builder {
 public:

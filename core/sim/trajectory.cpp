@@ -9,6 +9,7 @@
 #include <string>
 
 #include "layout.hpp"
+#include "nirslam/common/text_fields.hpp"
 
 namespace nirslam::sim {
 
@@ -79,13 +80,6 @@ std::vector<Eigen::Vector2d> resample_closed(const std::vector<Eigen::Vector2d>&
     const double f = span > 0.0 ? (s - cumulative[j]) / span : 0.0;
     out.push_back(dense[j] + (dense[(j + 1) % dense.size()] - dense[j]) * f);
   }
-  return out;
-}
-
-std::string lowercase(std::string_view text) {
-  std::string out(text);
-  std::transform(out.begin(), out.end(), out.begin(),
-                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
   return out;
 }
 

@@ -8,11 +8,11 @@
 #include <gtest/gtest.h>
 
 #include "app/cli_runner.hpp"
+#include "text_contains.hpp"
 
 namespace nirslam::testing {
 namespace {
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 TEST(DevicesCommand, ListsTheEmulatedCamerasWithFormatsRatesAndControls) {
   const CommandResult r = run_command(nirslam("devices --emulated"));

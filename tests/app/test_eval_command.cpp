@@ -14,6 +14,7 @@
 #include "core/test_eval_fixtures.hpp"
 #include "nirslam/eval/trajectory.hpp"
 #include "nirslam/sources/euroc_reader.hpp"
+#include "text_contains.hpp"
 
 namespace nirslam::testing {
 namespace {
@@ -26,7 +27,6 @@ using eval_testing::transformed;
 
 using EvalCommand = EvalFileTest;
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 // Built with append: GCC 12 warns (-Wrestrict, a known false positive) on "'" + string + "'".
 std::string quoted(const fs::path& p) {

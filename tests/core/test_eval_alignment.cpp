@@ -12,6 +12,7 @@
 #include "nirslam/common/error.hpp"
 #include "nirslam/eval/alignment.hpp"
 #include "nirslam/eval/evaluation.hpp"
+#include "text_contains.hpp"
 
 namespace nirslam {
 namespace {
@@ -21,7 +22,6 @@ using eval_testing::example_sim3;
 using eval_testing::loop_trajectory;
 using eval_testing::transformed;
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 TEST(Umeyama, Sim3RecoversAKnownRotationTranslationAndScaleExactly) {
   const Trajectory gt = loop_trajectory(300, 30.0);

@@ -12,6 +12,7 @@
 #include "nirslam/common/error.hpp"
 #include "nirslam/eval/association.hpp"
 #include "nirslam/sources/euroc_reader.hpp"
+#include "text_contains.hpp"
 
 namespace nirslam {
 namespace {
@@ -47,7 +48,6 @@ AssociationOptions interpolating(double max_gap_s = 0.1) {
   return options;
 }
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 TEST(Association, PairsA20HzEstimateWithA200HzGroundTruthDespiteJitter) {
   const Trajectory gt = timeline(1000.0, 200.0, 2000);  // 10 s

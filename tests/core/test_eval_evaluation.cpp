@@ -13,6 +13,7 @@
 #include "core/test_eval_fixtures.hpp"
 #include "nirslam/common/error.hpp"
 #include "nirslam/eval/evaluation.hpp"
+#include "text_contains.hpp"
 
 namespace nirslam {
 namespace {
@@ -26,7 +27,6 @@ namespace fs = std::filesystem;
 
 using Evaluation = EvalFileTest;
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 std::string euroc_csv(const Trajectory& t) {
   std::ostringstream out;

@@ -13,6 +13,7 @@
 #include "nirslam/camera/camera_io.hpp"
 #include "nirslam/common/error.hpp"
 #include "nirslam/eval/trajectory.hpp"
+#include "text_contains.hpp"
 
 namespace nirslam {
 namespace {
@@ -35,7 +36,6 @@ InputError expect_input_error(F&& read) {
   return InputError(fs::path(), "none");
 }
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 TEST_F(TrajectoryIo, ReadsTumWithCommentsAndBlankLines) {
   const fs::path file = write("est.txt",

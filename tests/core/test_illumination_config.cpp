@@ -12,13 +12,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path write_yaml(const std::string& name, const std::string& text) {
+fs::path write_illumination_yaml(const std::string& name, const std::string& text) {
   const fs::path file = fs::temp_directory_path() / ("nirslam_illumination_" + name + ".yaml");
   std::ofstream(file) << text;
   return file;
 }
 
-std::string error_of(const fs::path& file) {
+std::string illumination_config_error(const fs::path& file) {
   try {
     load_illumination_config(file);
   } catch (const InputError& e) {
@@ -47,53 +47,53 @@ TEST(IlluminationConfig, ShippedFileLoads) {
 }
 
 TEST(IlluminationConfig, EmptyFileKeepsDefaultsAndDefaultsHaveNoPriors) {
-  const IlluminationConfig config = load_illumination_config(write_yaml("empty", ""));
+  const IlluminationConfig config = load_illumination_config(write_illumination_yaml("empty", ""));
   ASSERT_EQ(config.scenes.size(), 4u);
   for (const SceneType& s : config.scenes) EXPECT_FALSE(s.prior) << s.name;
   EXPECT_DOUBLE_EQ(config.advisor.plateau_share, AdvisorSettings{}.plateau_share);
 }
 
 TEST(IlluminationConfig, ErrorsNameFileLineAndField) {
-  const fs::path typo = write_yaml("typo", "advisor:\n  plateau_share: 0.95\n  plateau_shar: 0.9\n");
-  EXPECT_EQ(error_of(typo), typo.string() + ":3: field 'advisor.plateau_shar': unknown key");
+  const fs::path typo = write_illumination_yaml("typo", "advisor:\n  plateau_share: 0.95\n  plateau_shar: 0.9\n");
+  EXPECT_EQ(illumination_config_error(typo), typo.string() + ":3: field 'advisor.plateau_shar': unknown key");
 
-  const fs::path range = write_yaml("range", "advisor:\n  plateau_share: 1.5\n");
-  EXPECT_NE(error_of(range).find(":2: field 'advisor.plateau_share': value 1.5"), std::string::npos) << error_of(range);
+  const fs::path range = write_illumination_yaml("range", "advisor:\n  plateau_share: 1.5\n");
+  EXPECT_NE(illumination_config_error(range).find(":2: field 'advisor.plateau_share': value 1.5"), std::string::npos) << illumination_config_error(range);
 
-  const fs::path power = write_yaml("power", "sweep:\n  powers_w: [0, 50, 400]\n");
-  EXPECT_NE(error_of(power).find(":2: field 'sweep.powers_w[2]': value 400"), std::string::npos) << error_of(power);
+  const fs::path power = write_illumination_yaml("power", "sweep:\n  powers_w: [0, 50, 400]\n");
+  EXPECT_NE(illumination_config_error(power).find(":2: field 'sweep.powers_w[2]': value 400"), std::string::npos) << illumination_config_error(power);
 
-  const fs::path list = write_yaml("list", "sweep:\n  powers_w: 50\n");
-  EXPECT_NE(error_of(list).find(":2: field 'sweep.powers_w': expected a list"), std::string::npos) << error_of(list);
+  const fs::path list = write_illumination_yaml("list", "sweep:\n  powers_w: 50\n");
+  EXPECT_NE(illumination_config_error(list).find(":2: field 'sweep.powers_w': expected a list"), std::string::npos) << illumination_config_error(list);
 
-  const fs::path basis = write_yaml(
+  const fs::path basis = write_illumination_yaml(
       "basis", "scenes:\n  - name: lab\n    prior: {low_w: 10, high_w: 20, basis: guess}\n");
-  EXPECT_NE(error_of(basis).find(":3: field 'scenes[0].prior.basis': expected 'paper' or 'assumption', got 'guess'"),
+  EXPECT_NE(illumination_config_error(basis).find(":3: field 'scenes[0].prior.basis': expected 'paper' or 'assumption', got 'guess'"),
             std::string::npos)
-      << error_of(basis);
+      << illumination_config_error(basis);
 
-  const fs::path order = write_yaml(
+  const fs::path order = write_illumination_yaml(
       "order", "scenes:\n  - name: lab\n    prior: {low_w: 80, high_w: 20, basis: assumption}\n");
-  EXPECT_NE(error_of(order).find("field 'scenes[0].prior.high_w': high_w is below low_w"), std::string::npos)
-      << error_of(order);
+  EXPECT_NE(illumination_config_error(order).find("field 'scenes[0].prior.high_w': high_w is below low_w"), std::string::npos)
+      << illumination_config_error(order);
 
   const fs::path duplicate =
-      write_yaml("duplicate", "scenes:\n  - name: lab\n    aliases: [bench]\n  - name: bench\n");
-  EXPECT_NE(error_of(duplicate).find(":4: field 'scenes[1]': the name 'bench' is used by an earlier scene"),
+      write_illumination_yaml("duplicate", "scenes:\n  - name: lab\n    aliases: [bench]\n  - name: bench\n");
+  EXPECT_NE(illumination_config_error(duplicate).find(":4: field 'scenes[1]': the name 'bench' is used by an earlier scene"),
             std::string::npos)
-      << error_of(duplicate);
+      << illumination_config_error(duplicate);
 
-  const fs::path nameless = write_yaml("nameless", "scenes:\n  - label: Lab\n");
-  EXPECT_NE(error_of(nameless).find("field 'scenes[0].name': every scene needs a name"), std::string::npos)
-      << error_of(nameless);
+  const fs::path nameless = write_illumination_yaml("nameless", "scenes:\n  - label: Lab\n");
+  EXPECT_NE(illumination_config_error(nameless).find("field 'scenes[0].name': every scene needs a name"), std::string::npos)
+      << illumination_config_error(nameless);
 
-  const fs::path lamp = write_yaml("lamp", "illuminator:\n  min_power_w: 50\n  max_power_w: 20\n");
-  EXPECT_NE(error_of(lamp).find(":3: field 'illuminator.max_power_w': max_power_w must exceed"), std::string::npos)
-      << error_of(lamp);
+  const fs::path lamp = write_illumination_yaml("lamp", "illuminator:\n  min_power_w: 50\n  max_power_w: 20\n");
+  EXPECT_NE(illumination_config_error(lamp).find(":3: field 'illuminator.max_power_w': max_power_w must exceed"), std::string::npos)
+      << illumination_config_error(lamp);
 
-  const fs::path syntax = write_yaml("syntax", "advisor: [\n");
-  EXPECT_NE(error_of(syntax).find("not valid YAML"), std::string::npos) << error_of(syntax);
-  EXPECT_NE(error_of(fs::temp_directory_path() / "nirslam_no_such_file.yaml").find("cannot open"), std::string::npos);
+  const fs::path syntax = write_illumination_yaml("syntax", "advisor: [\n");
+  EXPECT_NE(illumination_config_error(syntax).find("not valid YAML"), std::string::npos) << illumination_config_error(syntax);
+  EXPECT_NE(illumination_config_error(fs::temp_directory_path() / "nirslam_no_such_file.yaml").find("cannot open"), std::string::npos);
 }
 
 }  // namespace

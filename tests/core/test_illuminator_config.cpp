@@ -15,14 +15,14 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path write_yaml(const std::string& name, const std::string& text) {
+fs::path write_lamp_config_yaml(const std::string& name, const std::string& text) {
   const fs::path file = fs::temp_directory_path() / ("nirslam_lamp_config_" + name + ".yaml");
   std::ofstream(file) << text;
   return file;
 }
 
 TEST(IlluminatorConfig, LightOffsetBeamAndModeAreRead) {
-  const PipelineConfig config = load_pipeline_config(write_yaml(
+  const PipelineConfig config = load_pipeline_config(write_lamp_config_yaml(
       "keys", "pipeline:\n  mode: illuminated\nodometry:\n  light_offset: [0.01, 0.025, -0.005]\n  beam_exponent: 4.8\n"
                 "  surface_normals: false\n"));
   const OdometryOptions& o = config.worker.pipeline.odometry;
@@ -50,15 +50,15 @@ TEST(IlluminatorConfig, BadValuesNameTheFieldAndLine) {
     }
     return "no error";
   };
-  const std::string short_offset = error_of(write_yaml("short", "odometry:\n  light_offset: [0.0, 0.05]\n"));
+  const std::string short_offset = error_of(write_lamp_config_yaml("short", "odometry:\n  light_offset: [0.0, 0.05]\n"));
   EXPECT_NE(short_offset.find("odometry.light_offset"), std::string::npos) << short_offset;
   EXPECT_NE(short_offset.find("expected 3 numbers"), std::string::npos) << short_offset;
   EXPECT_NE(short_offset.find(":2"), std::string::npos) << short_offset;
-  const std::string text = error_of(write_yaml("text", "odometry:\n  light_offset: [0.0, up, 0.0]\n"));
+  const std::string text = error_of(write_lamp_config_yaml("text", "odometry:\n  light_offset: [0.0, up, 0.0]\n"));
   EXPECT_NE(text.find("odometry.light_offset[1]"), std::string::npos) << text;
-  const std::string beam = error_of(write_yaml("beam", "odometry:\n  beam_exponent: -1\n"));
+  const std::string beam = error_of(write_lamp_config_yaml("beam", "odometry:\n  beam_exponent: -1\n"));
   EXPECT_NE(beam.find("odometry.beam_exponent"), std::string::npos) << beam;
-  const std::string mode = error_of(write_yaml("mode", "pipeline:\n  mode: lamp\n"));
+  const std::string mode = error_of(write_lamp_config_yaml("mode", "pipeline:\n  mode: lamp\n"));
   EXPECT_NE(mode.find("illuminated"), std::string::npos) << mode;
 }
 

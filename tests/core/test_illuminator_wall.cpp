@@ -93,7 +93,7 @@ const WallSequence& wall_sequence() {
   return sequence;
 }
 
-const LevelCamera kCamera{kFocal, kFocal, 159.5, 119.5, kWidth, kHeight};
+const LevelCamera kWallCamera{kFocal, kFocal, 159.5, 119.5, kWidth, kHeight};
 
 // Textured pixels of the host with their true inverse depths.
 std::vector<WindowPoint> host_points(const WallSequence& s) {
@@ -143,7 +143,7 @@ std::vector<double> mean_residuals(const WallSequence& s, const std::vector<Wind
     for (const WindowPoint& p : points) {
       ResidualJacobian out;
       const Eigen::Vector3d* normal = with_normals && p.normal ? &*p.normal : nullptr;
-      if (!linearize_residual(kCamera, s.images[k]->level(0), T_th, T_th, p.pixel, p.inverse_depth,
+      if (!linearize_residual(kWallCamera, s.images[k]->level(0), T_th, T_th, p.pixel, p.inverse_depth,
                               p.host_intensity[4], AffineTransfer{}, out, lamp, normal))
         continue;
       sum += out.residual;
@@ -161,7 +161,7 @@ TEST(IlluminatorWall, ResidualsWithTheLampFactorAreFlatWhereWithoutItTheyAreBias
   std::printf("%zu host points\n", points.size());
   ASSERT_GT(points.size(), 500u);
   // Normals from the neighbouring points' depths, as the odometry gets them.
-  estimate_surface_normals(kCamera, points);
+  estimate_surface_normals(kWallCamera, points);
   int with_normal = 0;
   const Eigen::Vector3d wall_normal(0.0, 0.0, -1.0);  // in the camera frame
   for (const auto& p : points) {
@@ -208,7 +208,7 @@ TEST(IlluminatorWall, ResidualsWithTheLampFactorAreFlatWhereWithoutItTheyAreBias
 TEST(IlluminatorWall, TrackerFindsTheApproachBetterWithTheLampFactor) {
   const WallSequence& s = wall_sequence();
   std::vector<WindowPoint> points = host_points(s);
-  estimate_surface_normals(kCamera, points);
+  estimate_surface_normals(kWallCamera, points);
   std::vector<ReferencePoint> reference;
   for (const auto& p : points)
     reference.push_back({p.pixel, p.inverse_depth, p.normal ? *p.normal : Eigen::Vector3d::Zero()});
@@ -219,7 +219,7 @@ TEST(IlluminatorWall, TrackerFindsTheApproachBetterWithTheLampFactor) {
     options.lamp = lamp;
     options.affine_a_prior = 1e-3;  // plain odometry: the affine brightness is free
     options.affine_b_prior = 1e-3;
-    CoarseTracker tracker(make_level_cameras(kCamera, 3), options);
+    CoarseTracker tracker(make_level_cameras(kWallCamera, 3), options);
     tracker.set_reference(s.images[0], 0.0, 0.0, 1.0, reference);
     // Frame after frame against the host, each starting from the one before (as the odometry
     // between keyframes).
@@ -249,11 +249,11 @@ TEST(IlluminatorWall, TrackerFindsTheApproachBetterWithTheLampFactor) {
 TEST(IlluminatorWall, WindowOptimisationWithTheLampFactor) {
   const WallSequence& s = wall_sequence();
   std::vector<WindowPoint> points = host_points(s);
-  estimate_surface_normals(kCamera, points);
+  estimate_surface_normals(kWallCamera, points);
   auto run = [&](const LampGeometry& lamp, double& energy) {
     WindowOptions options;
     options.lamp = lamp;
-    WindowOptimizer window(kCamera, options);
+    WindowOptimizer window(kWallCamera, options);
     std::mt19937 rng(5);
     std::normal_distribution<double> noise(0.0, 1.0);
     const std::size_t views[] = {0, 1, 2};

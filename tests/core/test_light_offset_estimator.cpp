@@ -14,6 +14,7 @@
 #include "nirslam/geometry/se3.hpp"
 #include "nirslam/illumination/light_offset_estimator.hpp"
 #include "nirslam/sim/simulator.hpp"
+#include "core/bilinear_sample.hpp"
 
 namespace nirslam {
 namespace {
@@ -180,21 +181,10 @@ TEST(LightOffsetEstimator, TooFewPointsOrViewsSayWhy) {
   EXPECT_EQ(e.offset_cam, Eigen::Vector3d(0.0, 0.01, 0.0)) << "the start is kept";
 }
 
-
 // The simulator's room lit by its lamp alone (5 cm above the lens), hand-held: rendered
 // radiance with the beam divided out by the pixel's angle off the axis (as the calibration's
 // halo factor does), points from the true depth. What the estimator gets from the model that
 // made the images, before any odometry or calibration error.
-float bilinear(const cv::Mat& m, double x, double y) {
-  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-  const double fx = x - x0, fy = y - y0;
-  auto at = [&](int xx, int yy) {
-    return static_cast<double>(m.at<float>(std::clamp(yy, 0, m.rows - 1), std::clamp(xx, 0, m.cols - 1)));
-  };
-  return static_cast<float>((1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x0 + 1, y0)) +
-                            fy * ((1 - fx) * at(x0, y0 + 1) + fx * at(x0 + 1, y0 + 1)));
-}
-
 struct RenderedView {
   SE3 T_world_cam;
   cv::Mat radiance, depth;

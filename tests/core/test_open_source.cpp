@@ -11,13 +11,12 @@
 
 #include "nirslam/common/error.hpp"
 #include "nirslam/sources/open_source.hpp"
+#include "core/euroc_micro.hpp"
 
 namespace nirslam {
 namespace {
 
 namespace fs = std::filesystem;
-
-const fs::path kEuroc = fs::path(NIRSLAM_SHARED_DATA_DIR) / "euroc_v1_01_micro";
 
 class OpenSource : public ::testing::Test {
 protected:
@@ -51,7 +50,7 @@ protected:
 };
 
 TEST_F(OpenSource, RealEurocFromRootMav0OrCamera) {
-  for (const fs::path& path : {kEuroc, kEuroc / "mav0", kEuroc / "mav0/cam0"}) {
+  for (const fs::path& path : {kEurocMicro, kEurocMicro / "mav0", kEurocMicro / "mav0/cam0"}) {
     EXPECT_EQ(detect_source_format(path), SourceFormat::Euroc) << path;
     const std::unique_ptr<Source> source = open_source(path);
     EXPECT_EQ(source->info().kind, "euroc");

@@ -13,13 +13,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path write_yaml(const std::string& name, const std::string& text) {
+fs::path write_pipeline_yaml(const std::string& name, const std::string& text) {
   const fs::path file = fs::temp_directory_path() / ("nirslam_config_" + name + ".yaml");
   std::ofstream(file) << text;
   return file;
 }
 
-std::string error_of(const fs::path& file) {
+std::string pipeline_config_error(const fs::path& file) {
   try {
     load_pipeline_config(file);
   } catch (const InputError& e) {
@@ -60,7 +60,7 @@ TEST(PipelineConfig, GivenCalibrationBenchFileAddsTheBeam) {
 }
 
 TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
-  const PipelineConfig config = load_pipeline_config(write_yaml(
+  const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
       "stages", "pipeline:\n  mode: odometry\n  corrected_frame_exponent: 1.0\n  raw_frame_exponent: 0.5\n  lamp_distance_max_log_spread: 0.1\n"
                 "  lamp_distance_plane_fit: false\n  lamp_cosine_to_calibration: true\nodometry:\n  points_per_frame: 1500\n"
                 "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n"
@@ -85,7 +85,7 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   EXPECT_FALSE(shipped.worker.pipeline.light_offset_configured);
   EXPECT_TRUE(shipped.worker.pipeline.estimate_light_offset);
   EXPECT_FALSE(shipped.worker.pipeline.apply_estimated_light_offset);
-  const PipelineConfig config = load_pipeline_config(write_yaml(
+  const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
       "lamp", "odometry:\n  light_offset: [0.0, 0.02, 0.0]\n  apply_estimated_light_offset: true\n"
               "  lamp_factor_derivatives: false\n"));
   EXPECT_FALSE(config.worker.pipeline.odometry.lamp_factor_derivatives);
@@ -94,9 +94,9 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   EXPECT_TRUE(config.worker.pipeline.apply_estimated_light_offset);
   // The lens vignette is found next to the config file; a missing one is named.
   std::ofstream(fs::temp_directory_path() / "nirslam_lens.png") << "x";
-  const PipelineConfig lens = load_pipeline_config(write_yaml("lens", "calibration:\n  lens_vignette: nirslam_lens.png\n"));
+  const PipelineConfig lens = load_pipeline_config(write_pipeline_yaml("lens", "calibration:\n  lens_vignette: nirslam_lens.png\n"));
   EXPECT_EQ(lens.worker.pipeline.lens_vignette_file, fs::temp_directory_path() / "nirslam_lens.png");
-  const std::string missing = error_of(write_yaml("lens_missing", "calibration:\n  lens_vignette: no_such_lens.png\n"));
+  const std::string missing = pipeline_config_error(write_pipeline_yaml("lens_missing", "calibration:\n  lens_vignette: no_such_lens.png\n"));
   EXPECT_NE(missing.find("calibration.lens_vignette"), std::string::npos) << missing;
   EXPECT_NE(missing.find("no_such_lens.png"), std::string::npos) << missing;
   // So is a given photometric calibration's folder.
@@ -109,46 +109,46 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
 }
 
 TEST(PipelineConfig, MissingKeysKeepDefaults) {
-  const PipelineConfig config = load_pipeline_config(write_yaml("partial", "demo:\n  fps: 20\n"));
+  const PipelineConfig config = load_pipeline_config(write_pipeline_yaml("partial", "demo:\n  fps: 20\n"));
   EXPECT_DOUBLE_EQ(config.demo.fps, 20.0);
   EXPECT_EQ(config.demo.width, DemoOptions{}.width);
   EXPECT_EQ(config.worker.history_length, WorkerOptions{}.history_length);
 }
 
 TEST(PipelineConfig, ErrorsNameFileLineAndField) {
-  const fs::path typo = write_yaml("typo", "demo:\n  width: 640\n  hieght: 480\n");
-  EXPECT_EQ(error_of(typo), typo.string() + ":3: field 'demo.hieght': unknown key");
+  const fs::path typo = write_pipeline_yaml("typo", "demo:\n  width: 640\n  hieght: 480\n");
+  EXPECT_EQ(pipeline_config_error(typo), typo.string() + ":3: field 'demo.hieght': unknown key");
 
-  const fs::path type = write_yaml("type", "worker:\n  history_length: lots\n");
-  EXPECT_NE(error_of(type).find(":2: field 'worker.history_length': expected a number"), std::string::npos)
-      << error_of(type);
+  const fs::path type = write_pipeline_yaml("type", "worker:\n  history_length: lots\n");
+  EXPECT_NE(pipeline_config_error(type).find(":2: field 'worker.history_length': expected a number"), std::string::npos)
+      << pipeline_config_error(type);
 
-  const fs::path range = write_yaml("range", "demo:\n  width: 10\n");
-  EXPECT_NE(error_of(range).find(":2: field 'demo.width': value 10 outside"), std::string::npos) << error_of(range);
+  const fs::path range = write_pipeline_yaml("range", "demo:\n  width: 10\n");
+  EXPECT_NE(pipeline_config_error(range).find(":2: field 'demo.width': value 10 outside"), std::string::npos) << pipeline_config_error(range);
 
-  const fs::path pacing = write_yaml("pacing", "worker:\n  pacing: slow\n");
-  EXPECT_NE(error_of(pacing).find("field 'worker.pacing': expected 'fast' or 'recorded'"), std::string::npos);
+  const fs::path pacing = write_pipeline_yaml("pacing", "worker:\n  pacing: slow\n");
+  EXPECT_NE(pipeline_config_error(pacing).find("field 'worker.pacing': expected 'fast' or 'recorded'"), std::string::npos);
 
-  const fs::path section = write_yaml("section", "mapping:\n  points: 2000\n");
-  EXPECT_NE(error_of(section).find(":1: field 'mapping': unknown section"), std::string::npos);
+  const fs::path section = write_pipeline_yaml("section", "mapping:\n  points: 2000\n");
+  EXPECT_NE(pipeline_config_error(section).find(":1: field 'mapping': unknown section"), std::string::npos);
 
-  const fs::path mode = write_yaml("mode", "pipeline:\n  mode: dso\n");
-  EXPECT_NE(error_of(mode).find(":2: field 'pipeline.mode': expected 'quality', 'odometry', 'calibrated', "
+  const fs::path mode = write_pipeline_yaml("mode", "pipeline:\n  mode: dso\n");
+  EXPECT_NE(pipeline_config_error(mode).find(":2: field 'pipeline.mode': expected 'quality', 'odometry', 'calibrated', "
                                 "'illuminated' or 'odometry-illuminated'"),
             std::string::npos)
-      << error_of(mode);
+      << pipeline_config_error(mode);
 
-  const fs::path flag = write_yaml("flag", "calibration:\n  background_thread: maybe\n");
-  EXPECT_NE(error_of(flag).find(":2: field 'calibration.background_thread': expected true or false"), std::string::npos)
-      << error_of(flag);
+  const fs::path flag = write_pipeline_yaml("flag", "calibration:\n  background_thread: maybe\n");
+  EXPECT_NE(pipeline_config_error(flag).find(":2: field 'calibration.background_thread': expected true or false"), std::string::npos)
+      << pipeline_config_error(flag);
 
-  const fs::path window = write_yaml("window", "odometry:\n  window_size: 40\n");
-  EXPECT_NE(error_of(window).find("field 'odometry.window_size'"), std::string::npos) << error_of(window);
+  const fs::path window = write_pipeline_yaml("window", "odometry:\n  window_size: 40\n");
+  EXPECT_NE(pipeline_config_error(window).find("field 'odometry.window_size'"), std::string::npos) << pipeline_config_error(window);
 
-  const fs::path broken = write_yaml("broken", "demo: [1, 2\n");
-  EXPECT_NE(error_of(broken).find("not valid YAML"), std::string::npos) << error_of(broken);
+  const fs::path broken = write_pipeline_yaml("broken", "demo: [1, 2\n");
+  EXPECT_NE(pipeline_config_error(broken).find("not valid YAML"), std::string::npos) << pipeline_config_error(broken);
 
-  EXPECT_NE(error_of("/no/such/config.yaml").find("/no/such/config.yaml: cannot open"), std::string::npos);
+  EXPECT_NE(pipeline_config_error("/no/such/config.yaml").find("/no/such/config.yaml: cannot open"), std::string::npos);
 }
 
 }  // namespace

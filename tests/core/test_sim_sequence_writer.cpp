@@ -36,7 +36,7 @@ protected:
   fs::path root_;
 };
 
-SimulatorOptions small(sim::SceneKind scene) {
+SimulatorOptions six_small_frames(sim::SceneKind scene) {
   SimulatorOptions o;
   o.scene = scene;
   o.width = 96;
@@ -54,7 +54,7 @@ std::vector<std::string> lines_of(const fs::path& file) {
 
 TEST_F(SequenceWriterTest, SequenceRoundTripsThroughTheProjectsReaders) {
   for (const SimCameraModel model : {SimCameraModel::Pinhole, SimCameraModel::Fov}) {
-    SimulatorOptions o = small(sim::SceneKind::Tunnel);
+    SimulatorOptions o = six_small_frames(sim::SceneKind::Tunnel);
     o.camera_model = model;
     const fs::path folder = root_ / (model == SimCameraModel::Pinhole ? "pinhole" : "fov");
     SimulationOutput output;
@@ -131,7 +131,7 @@ std::string bytes_of(const fs::path& file) {
 }
 
 TEST_F(SequenceWriterTest, SameSeedWritesTheSameBytes) {
-  SimulatorOptions o = small(sim::SceneKind::Parking);
+  SimulatorOptions o = six_small_frames(sim::SceneKind::Parking);
   o.frames = 4;
   write_simulated_sequence(o, root_ / "a");
   write_simulated_sequence(o, root_ / "b");
@@ -144,7 +144,7 @@ TEST_F(SequenceWriterTest, SameSeedWritesTheSameBytes) {
 }
 
 TEST_F(SequenceWriterTest, CameraFileIsWhatDsoExpects) {
-  SimulatorOptions o = small(sim::SceneKind::Room);
+  SimulatorOptions o = six_small_frames(sim::SceneKind::Room);
   write_dso_camera_file(root_.string() + "_camera.txt", *make_sim_camera(o));
   const auto lines = lines_of(root_.string() + "_camera.txt");
   fs::remove(root_.string() + "_camera.txt");
@@ -157,7 +157,7 @@ TEST_F(SequenceWriterTest, CameraFileIsWhatDsoExpects) {
 }
 
 TEST_F(SequenceWriterTest, PowerSweepRendersOneViewpointAtEveryPower) {
-  SimulatorOptions o = small(sim::SceneKind::Room);
+  SimulatorOptions o = six_small_frames(sim::SceneKind::Room);
   o.exposure_mode = ExposureMode::Fixed;
   o.exposure_ms = 2.0;
   PowerSweepOptions sweep;
@@ -181,7 +181,7 @@ TEST_F(SequenceWriterTest, FullDiskIsReportedWithTheFileName) {
   fs::create_directories(root_);
   fs::create_symlink("/dev/full", root_ / "times.txt");
   try {
-    write_simulated_sequence(small(sim::SceneKind::Room), root_);
+    write_simulated_sequence(six_small_frames(sim::SceneKind::Room), root_);
     FAIL() << "writing to a full disk succeeded";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("times.txt"), std::string::npos) << e.what();

@@ -16,7 +16,7 @@ namespace nirslam {
 namespace {
 
 // Small frames keep the suite quick under the sanitizers (Debug builds render slowly).
-SimulatorOptions small(sim::SceneKind scene = sim::SceneKind::Tunnel) {
+SimulatorOptions twelve_small_frames(sim::SceneKind scene = sim::SceneKind::Tunnel) {
   SimulatorOptions o;
   o.scene = scene;
   o.width = 96;
@@ -30,7 +30,7 @@ bool same_bytes(const cv::Mat& a, const cv::Mat& b) {
 }
 
 TEST(Simulator, SameSeedGivesTheSameBytesAndRewindRepeats) {
-  Simulator a(small()), b(small());
+  Simulator a(twelve_small_frames()), b(twelve_small_frames());
   std::vector<cv::Mat> first;
   for (int i = 0; i < 5; ++i) {
     const auto fa = a.next(), fb = b.next();
@@ -41,14 +41,14 @@ TEST(Simulator, SameSeedGivesTheSameBytesAndRewindRepeats) {
   }
   a.rewind();
   for (int i = 0; i < 5; ++i) EXPECT_TRUE(same_bytes(a.next()->frame.image, first[static_cast<std::size_t>(i)])) << "rewound " << i;
-  SimulatorOptions other = small();
+  SimulatorOptions other = twelve_small_frames();
   other.seed = 2;
   Simulator c(other);
   EXPECT_FALSE(same_bytes(c.next()->frame.image, first[0]));
   // The thread count does not change a byte.
   const int threads = cv::getNumThreads();
   cv::setNumThreads(1);
-  Simulator d(small());
+  Simulator d(twelve_small_frames());
   const auto single = d.next();
   cv::setNumThreads(threads);
   EXPECT_TRUE(same_bytes(single->frame.image, first[0]));
@@ -56,7 +56,7 @@ TEST(Simulator, SameSeedGivesTheSameBytesAndRewindRepeats) {
 
 TEST(Simulator, DepthAndPosesLandOnTheSameSurfacePointInAnotherFrame) {
   for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Tunnel, sim::SceneKind::Parking}) {
-    SimulatorOptions o = small(scene);
+    SimulatorOptions o = twelve_small_frames(scene);
     o.fps = 10.0;  // frames far enough apart for real parallax
     Simulator sim(o);
     const auto a = sim.next(true);
@@ -94,7 +94,7 @@ TEST(Simulator, DepthAndPosesLandOnTheSameSurfacePointInAnotherFrame) {
 // radiance (lamp off, ambient light only); filtered to the pixel footprint it does not.
 TEST(Simulator, DistanceIndependentTextureKeepsASurfacePointsRadiance) {
   const auto spread = [](TextureFiltering filtering) {
-    SimulatorOptions o = small(sim::SceneKind::Room);
+    SimulatorOptions o = twelve_small_frames(sim::SceneKind::Room);
     o.width = 320;  // render_pixel only: the size sets the pixel footprint, not the cost
     o.height = 240;
     o.powers_w = {0.0};
@@ -134,7 +134,7 @@ TEST(Simulator, DistanceIndependentTextureKeepsASurfacePointsRadiance) {
 // The wandering auto-exposure target keeps the exposure swinging instead of settling.
 TEST(Simulator, WanderingAutoExposureTargetKeepsTheExposureSwinging) {
   const auto span = [](double swing) {
-    SimulatorOptions o = small(sim::SceneKind::Room);
+    SimulatorOptions o = twelve_small_frames(sim::SceneKind::Room);
     o.width = 64;
     o.height = 48;
     o.supersampling = 1;
@@ -156,7 +156,7 @@ TEST(Simulator, WanderingAutoExposureTargetKeepsTheExposureSwinging) {
 
 TEST(Simulator, InverseResponseRecoversExposureTimesVignetteTimesRadiance) {
   for (const ResponsePreset preset : {ResponsePreset::Gamma, ResponsePreset::Linear, ResponsePreset::Filmic}) {
-    SimulatorOptions o = small(sim::SceneKind::Room);
+    SimulatorOptions o = twelve_small_frames(sim::SceneKind::Room);
     o.noise = false;
     o.response = ResponseModel::from_preset(preset);
     Simulator sim(o);
@@ -181,7 +181,7 @@ TEST(Simulator, InverseResponseRecoversExposureTimesVignetteTimesRadiance) {
 }
 
 TEST(Simulator, NoiseHasThePredictedSpreadAroundTheTruth) {
-  SimulatorOptions o = small(sim::SceneKind::Room);
+  SimulatorOptions o = twelve_small_frames(sim::SceneKind::Room);
   o.bit_depth = 16;
   o.exposure_mode = ExposureMode::Fixed;
   o.exposure_ms = 8.0;
@@ -208,7 +208,7 @@ TEST(Simulator, NoiseHasThePredictedSpreadAroundTheTruth) {
 }
 
 TEST(Simulator, AutoExposureVariesTheExposureWithinItsLimitsAndFixedDoesNot) {
-  SimulatorOptions o = small(sim::SceneKind::Parking);
+  SimulatorOptions o = twelve_small_frames(sim::SceneKind::Parking);
   o.frames = 30;
   o.supersampling = 1;
   o.motion = sim::MotionKind::Vehicle;
@@ -238,7 +238,7 @@ TEST(Simulator, AutoExposureVariesTheExposureWithinItsLimitsAndFixedDoesNot) {
 }
 
 TEST(Simulator, PowerScheduleCyclesAndTheImageBrightensWithPower) {
-  SimulatorOptions o = small(sim::SceneKind::Tunnel);
+  SimulatorOptions o = twelve_small_frames(sim::SceneKind::Tunnel);
   o.powers_w = {20.0, 80.0};
   o.power_step_frames = 2;
   o.exposure_mode = ExposureMode::Fixed;
@@ -256,7 +256,7 @@ TEST(Simulator, PowerScheduleCyclesAndTheImageBrightensWithPower) {
 }
 
 TEST(Simulator, BadOptionsAreRejectedByName) {
-  SimulatorOptions o = small();
+  SimulatorOptions o = twelve_small_frames();
   o.supersampling = 5;
   try {
     validate(o);
@@ -264,16 +264,16 @@ TEST(Simulator, BadOptionsAreRejectedByName) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("supersampling"), std::string::npos);
   }
-  o = small();
+  o = twelve_small_frames();
   o.bit_depth = 12;
   EXPECT_THROW(validate(o), std::invalid_argument);
-  o = small();
+  o = twelve_small_frames();
   o.response = ResponseModel(Eigen::Vector4d(-3, 0, 0, 0));
   EXPECT_THROW(Simulator{o}, std::invalid_argument);
 }
 
 TEST(SimulatedSource, FramesCarryTheirPhotometricStateAndACamera) {
-  SimulatorOptions o = small(sim::SceneKind::Outdoor);
+  SimulatorOptions o = twelve_small_frames(sim::SceneKind::Outdoor);
   o.camera_model = SimCameraModel::Fov;
   o.frames = 3;
   auto source = make_simulated_source(o);

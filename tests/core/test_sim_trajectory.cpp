@@ -10,7 +10,7 @@
 namespace nirslam::sim {
 namespace {
 
-constexpr SceneKind kScenes[] = {SceneKind::Room, SceneKind::Outdoor, SceneKind::Parking, SceneKind::Tunnel};
+constexpr SceneKind kEveryScene[] = {SceneKind::Room, SceneKind::Outdoor, SceneKind::Parking, SceneKind::Tunnel};
 constexpr MotionKind kMotions[] = {MotionKind::Handheld, MotionKind::Vehicle, MotionKind::Robot};
 
 TEST(SimTrajectory, NamesRoundTrip) {
@@ -27,7 +27,7 @@ TEST(SimTrajectory, EveryPathKeepsClearOfTheSceneOverAWholeLoop) {
     for (int y = -1; y <= 1; ++y)
       for (int z = -1; z <= 1; ++z)
         if (x || y || z) directions.emplace_back(x, y, z);
-  for (const SceneKind k : kScenes) {
+  for (const SceneKind k : kEveryScene) {
     const Scene scene = make_scene(k, 1);
     for (const MotionKind m : kMotions) {
       const Trajectory trajectory = make_trajectory(k, m, 1);
@@ -49,7 +49,7 @@ TEST(SimTrajectory, EveryPathKeepsClearOfTheSceneOverAWholeLoop) {
 }
 
 TEST(SimTrajectory, PathsAreSmoothAndLoop) {
-  for (const SceneKind k : kScenes) {
+  for (const SceneKind k : kEveryScene) {
     for (const MotionKind m : kMotions) {
       const Trajectory trajectory = make_trajectory(k, m, 2);
       EXPECT_GT(trajectory.loop_length(), 5.0);

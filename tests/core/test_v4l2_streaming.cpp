@@ -17,6 +17,7 @@
 #include "nirslam/capture/v4l2_source.hpp"
 #include "nirslam/common/error.hpp"
 #include "test_v4l2_fixtures.hpp"
+#include "text_contains.hpp"
 
 namespace nirslam {
 namespace {
@@ -25,7 +26,6 @@ using namespace std::chrono_literals;
 using testing::emulator_with;
 using testing::small_camera;
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 // Waits (up to 5 s) until the camera state satisfies `done`: the capture thread applies changes
 // between frames, a moment after the call that asked for them.

@@ -9,22 +9,14 @@
 #include <thread>
 
 #include <gtest/gtest.h>
-#include <opencv2/core/utility.hpp>
 
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "core/simulator_fixtures.hpp"
+#include "opencv_serial_under_tsan.hpp"
 
 namespace nirslam {
 namespace {
-
-#if defined(__SANITIZE_THREAD__)
-// OpenCV's parallel_for_ runs on TBB, which ThreadSanitizer cannot see: run its loops serially.
-const bool opencv_loops_serial = [] {
-  cv::setNumThreads(0);
-  return true;
-}();
-#endif
 
 TEST(PhotometricOnlineCalibration, BackgroundBackEndPublishesWhileAReaderPolls) {
   OnlineCalibrationOptions options;

@@ -22,7 +22,7 @@ using testing::CountingSource;
 
 // A seekable counting source whose frames in `corrupt` throw (and the stream goes on after them,
 // as a folder reader's does).
-std::unique_ptr<CountingSource> counting(int count, std::set<int> corrupt = {}, std::chrono::microseconds read_time = {}) {
+std::unique_ptr<CountingSource> counting_source(int count, std::set<int> corrupt = {}, std::chrono::microseconds read_time = {}) {
   CountingOptions options;
   options.count = count;
   options.corrupt = std::move(corrupt);
@@ -32,7 +32,7 @@ std::unique_ptr<CountingSource> counting(int count, std::set<int> corrupt = {}, 
 }
 
 TEST(ReadAheadSource, DeliversEveryFrameInOrderThenTheEnd) {
-  auto source = read_ahead(counting(40), 3);
+  auto source = read_ahead(counting_source(40), 3);
   EXPECT_EQ(source->info().kind, "test");
   ASSERT_EQ(source->info().frame_count, std::optional<std::size_t>(40));
   for (int i = 0; i < 40; ++i) {
@@ -47,7 +47,7 @@ TEST(ReadAheadSource, DeliversEveryFrameInOrderThenTheEnd) {
 }
 
 TEST(ReadAheadSource, AnErrorComesAtItsPlaceAfterTheFramesReadBeforeIt) {
-  auto source = read_ahead(counting(10, {4}), 4);
+  auto source = read_ahead(counting_source(10, {4}), 4);
   for (int i = 0; i < 4; ++i) {
     auto frame = source->next();
     ASSERT_TRUE(frame);
@@ -65,7 +65,7 @@ TEST(ReadAheadSource, AnErrorComesAtItsPlaceAfterTheFramesReadBeforeIt) {
 }
 
 TEST(ReadAheadSource, ReadsNoFurtherAheadThanItsDepth) {
-  auto wrapped = counting(100);
+  auto wrapped = counting_source(100);
   const CountingSource& inner = *wrapped;
   auto source = read_ahead(std::move(wrapped), 3);
   ASSERT_TRUE(source->next());
@@ -77,7 +77,7 @@ TEST(ReadAheadSource, ReadsNoFurtherAheadThanItsDepth) {
 }
 
 TEST(ReadAheadSource, RewindStartsOverWhileTheReaderIsBusy) {
-  auto source = read_ahead(counting(30, {}, std::chrono::microseconds(200)), 4);
+  auto source = read_ahead(counting_source(30, {}, std::chrono::microseconds(200)), 4);
   for (int i = 0; i < 7; ++i) ASSERT_TRUE(source->next());
   source->rewind();
   for (int i = 0; i < 30; ++i) {
@@ -89,7 +89,7 @@ TEST(ReadAheadSource, RewindStartsOverWhileTheReaderIsBusy) {
 }
 
 TEST(ReadAheadSource, SeekDropsWhatWasReadAheadAndGoesOnFromThere) {
-  auto source = read_ahead(counting(50), 4);
+  auto source = read_ahead(counting_source(50), 4);
   ASSERT_TRUE(source->info().seekable);
   for (int i = 0; i < 3; ++i) ASSERT_TRUE(source->next());
   source->seek(30);
@@ -110,7 +110,7 @@ TEST(ReadAheadSource, SeekDropsWhatWasReadAheadAndGoesOnFromThere) {
 }
 
 TEST(ReadAheadSource, DestroyedWithAFullQueueDoesNotHang) {
-  auto source = read_ahead(counting(1000), 2);
+  auto source = read_ahead(counting_source(1000), 2);
   ASSERT_TRUE(source->next());
   std::this_thread::sleep_for(std::chrono::milliseconds(5));
   source.reset();  // the reader waits for room; stopping must wake it
@@ -131,7 +131,7 @@ TEST(ReadAheadSource, LiveSourcesAndZeroDepthAreLeftAsTheyAre) {
   auto live = std::make_unique<LiveSource>();
   const Source* live_address = live.get();
   EXPECT_EQ(read_ahead(std::move(live)).get(), live_address);
-  auto dataset = counting(3);
+  auto dataset = counting_source(3);
   const Source* dataset_address = dataset.get();
   EXPECT_EQ(read_ahead(std::move(dataset), 0).get(), dataset_address);
   EXPECT_THROW(read_ahead(nullptr), std::invalid_argument);

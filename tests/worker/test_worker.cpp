@@ -6,25 +6,13 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-#include <opencv2/core/utility.hpp>
 
 #include "nirslam/common/error.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/worker/worker.hpp"
 #include "counting_source.hpp"
-
-#if defined(__SANITIZE_THREAD__)
-namespace {
-// OpenCV's parallel_for_ runs on TBB, which is not instrumented: ThreadSanitizer cannot see its
-// synchronisation and reports races inside it. The worker's own threads are what these tests
-// check, so OpenCV runs its loops serially on the calling thread here.
-const bool opencv_loops_serial = [] {
-  cv::setNumThreads(0);
-  return true;
-}();
-}  // namespace
-#endif
+#include "opencv_serial_under_tsan.hpp"
 
 namespace nirslam {
 namespace {
@@ -44,17 +32,13 @@ using testing::CountingSource;
 
 // A counting source (counting_source.hpp); frame `bad_index` is corrupt, frame `bad_type` of
 // the wrong pixel type.
-SourceFactory counting(int count, double period_s = 0.05, int bad_index = -1, int bad_type = -1) {
+SourceFactory counting_factory(int count, double period_s = 0.05, int bad_index = -1, int bad_type = -1) {
   CountingOptions options;
   options.count = count;
   options.period_s = period_s;
   options.wrong_type_index = bad_type;
   if (bad_index >= 0) options.corrupt = {bad_index};
   return [options] { return std::make_unique<CountingSource>(options); };
-}
-
-bool settled(const Snapshot& s) {
-  return s.state == WorkerState::Finished || s.state == WorkerState::Failed;
 }
 
 TEST(Worker, StartsIdleWithAnEmptySnapshot) {
@@ -67,7 +51,7 @@ TEST(Worker, StartsIdleWithAnEmptySnapshot) {
 
 TEST(Worker, ProcessesEveryFrameOfADatasetThenFinishes) {
   Worker worker(quality_only({.pacing = Pacing::AsFastAsPossible, .history_length = 10}));
-  worker.post(command::SetSource{counting(25)});
+  worker.post(command::SetSource{counting_factory(25)});
   worker.post(command::Start{});
   const auto last = worker.wait_for(settled, 10s);
   ASSERT_EQ(last->state, WorkerState::Finished) << last->message;
@@ -82,7 +66,7 @@ TEST(Worker, ProcessesEveryFrameOfADatasetThenFinishes) {
 
 TEST(Worker, PauseHoldsAndStepAdvancesExactlyOneFrame) {
   Worker worker(quality_only());
-  worker.post(command::SetSource{counting(100)});
+  worker.post(command::SetSource{counting_factory(100)});
   worker.post(command::Step{});
   auto s = worker.wait_for([](const Snapshot& x) { return x.frames_processed == 1; }, 5s);
   ASSERT_EQ(s->frames_processed, 1);
@@ -98,7 +82,7 @@ TEST(Worker, PauseHoldsAndStepAdvancesExactlyOneFrame) {
 
 TEST(Worker, StopRewindsAndStartBeginsAgain) {
   Worker worker(quality_only());
-  worker.post(command::SetSource{counting(5)});
+  worker.post(command::SetSource{counting_factory(5)});
   worker.post(command::Start{});
   ASSERT_EQ(worker.wait_for(settled, 5s)->state, WorkerState::Finished);
   worker.post(command::Stop{});
@@ -155,7 +139,7 @@ TEST(Worker, SeekIsRefusedWithAReasonWhereItCannotBeDone) {
   EXPECT_NE(worker.wait_for([](const Snapshot& x) { return !x.message.empty(); }, 5s)->message.find("no source"),
             std::string::npos);
 
-  worker.post(command::SetSource{counting(20)});  // not seekable
+  worker.post(command::SetSource{counting_factory(20)});  // not seekable
   worker.post(command::Seek{3});
   auto s = worker.wait_for([](const Snapshot& x) { return x.message.find("cannot jump") != std::string::npos; }, 5s);
   EXPECT_NE(s->message.find("counting source: this source cannot jump"), std::string::npos) << s->message;
@@ -172,7 +156,7 @@ TEST(Worker, SeekIsRefusedWithAReasonWhereItCannotBeDone) {
 
 TEST(Worker, CorruptFrameFailsWithTheFileNamed) {
   Worker worker(quality_only());
-  worker.post(command::SetSource{counting(10, 0.05, 4)});
+  worker.post(command::SetSource{counting_factory(10, 0.05, 4)});
   worker.post(command::Start{});
   const auto s = worker.wait_for(settled, 5s);
   ASSERT_EQ(s->state, WorkerState::Failed);
@@ -182,7 +166,7 @@ TEST(Worker, CorruptFrameFailsWithTheFileNamed) {
 
 TEST(Worker, FrameOfTheWrongPixelTypeFailsInsteadOfBeingMeasured) {
   Worker worker(quality_only());
-  worker.post(command::SetSource{counting(10, 0.05, -1, 3)});
+  worker.post(command::SetSource{counting_factory(10, 0.05, -1, 3)});
   worker.post(command::Start{});
   const auto s = worker.wait_for(settled, 5s);
   ASSERT_EQ(s->state, WorkerState::Failed);
@@ -204,7 +188,7 @@ TEST(Worker, SourceThatCannotOpenReportsWhy) {
 
 TEST(Worker, RecordedSpeedFollowsTheTimestamps) {
   Worker worker(quality_only({.pacing = Pacing::RecordedSpeed}));
-  worker.post(command::SetSource{counting(11, 0.04)});  // 0.4 s of recording
+  worker.post(command::SetSource{counting_factory(11, 0.04)});  // 0.4 s of recording
   const auto started = std::chrono::steady_clock::now();
   worker.post(command::Start{});
   ASSERT_EQ(worker.wait_for(settled, 10s)->state, WorkerState::Finished);
@@ -216,7 +200,7 @@ TEST(Worker, ObserverSeesEveryFrameBeforeItIsPublished) {
   Worker worker(quality_only());
   std::vector<std::int64_t> seen;  // written on the worker thread only, read after it settles
   worker.set_observer([&seen](const Snapshot& s) { seen.push_back(s.frame->index); });
-  worker.post(command::SetSource{counting(30)});
+  worker.post(command::SetSource{counting_factory(30)});
   worker.post(command::Start{});
   ASSERT_EQ(worker.wait_for(settled, 5s)->state, WorkerState::Finished);
   worker.post(command::Pause{});  // round trip through the queue orders the reads below
@@ -266,7 +250,7 @@ TEST(Worker, DestroyingARunningWorkerStopsPromptly) {
   const auto started = std::chrono::steady_clock::now();
   {
     Worker worker(quality_only({.pacing = Pacing::RecordedSpeed, .loop = true}));
-    worker.post(command::SetSource{counting(1000, 1.0)});  // would take 1000 s
+    worker.post(command::SetSource{counting_factory(1000, 1.0)});  // would take 1000 s
     worker.post(command::Start{});
     worker.wait_for([](const Snapshot& s) { return s.frames_processed >= 1; }, 5s);
   }

@@ -4,22 +4,12 @@
 #include <fstream>
 
 #include <gtest/gtest.h>
-#include <opencv2/core/utility.hpp>
 
 #include "nirslam/session/session_format.hpp"
 #include "nirslam/session/session_source.hpp"
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/worker/worker.hpp"
-
-#if defined(__SANITIZE_THREAD__)
-namespace {
-// As in test_worker.cpp: OpenCV's TBB loops are not instrumented, so they run serially here.
-const bool opencv_loops_serial = [] {
-  cv::setNumThreads(0);
-  return true;
-}();
-}  // namespace
-#endif
+#include "opencv_serial_under_tsan.hpp"
 
 namespace nirslam {
 namespace {
@@ -53,7 +43,6 @@ SourceFactory small_demo(std::int64_t frames) {
   };
 }
 
-bool settled(const Snapshot& s) { return s.state == WorkerState::Finished || s.state == WorkerState::Failed; }
 
 TEST(WorkerRecording, RecordsEveryFrameUntilTheEndOfTheSourceAndFinishesTheSession) {
   const fs::path session = fresh_folder("to_end") / "session";

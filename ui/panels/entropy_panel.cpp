@@ -30,14 +30,6 @@ std::string percent_text(double fraction) {
   return fmt::format("{:.2f} %", percent);
 }
 
-void section_title(const char* title, const char* detail) {
-  ImGui::TextUnformatted(title);
-  if (detail != nullptr && *detail != '\0') {
-    ImGui::SameLine(0.0f, 6.0f);
-    ImGui::TextColored(to_vec4(colours::text_dim), "%s", detail);
-  }
-}
-
 }  // namespace
 
 void EntropyPanel::draw(const Snapshot& snapshot) {
@@ -140,7 +132,7 @@ void EntropyPanel::draw_clipping_bars(const ImageQuality& quality) {
 void EntropyPanel::draw_histogram(const Snapshot& snapshot) {
   const GreyHistogram& histogram = snapshot.histogram;
   const Frame* frame = snapshot.frame && !snapshot.frame->image.empty() ? &*snapshot.frame : nullptr;
-  section_title("Histogram", "· 256 bins, log count");
+  plot_title("Histogram", "· 256 bins, log count");
 
   const float width = ImGui::GetContentRegionAvail().x;
   const float height = std::round(ImGui::GetFrameHeight() * 3.6f);
@@ -217,7 +209,7 @@ void EntropyPanel::draw_history(const Snapshot& snapshot) {
 
   const bool whole_sequence = snapshot.source.frame_count && span == *snapshot.source.frame_count;
   const std::string span_text = whole_sequence ? fmt::format("· all {} frames", span) : fmt::format("· last {} frames", span);
-  section_title("Entropy history", span_text.c_str());
+  plot_title("Entropy history", span_text.c_str());
   ImGui::SameLine();
   const float checkbox_width = ImGui::CalcTextSize("Auto scale").x + ImGui::GetFrameHeight() +
                                ImGui::GetStyle().ItemInnerSpacing.x;
@@ -275,7 +267,7 @@ void EntropyPanel::draw_history(const Snapshot& snapshot) {
 
   PlotResult clipping_plot;
   if (clipping_shown_) {
-    section_title("Clipped pixels", "· % of the frame");
+    plot_title("Clipped pixels", "· % of the frame");
     ImGui::SameLine();
     const float legend_width = ImGui::CalcTextSize("saturated").x + ImGui::CalcTextSize("black").x + 60.0f;
     ImGui::SetCursorPosX(std::max(ImGui::GetCursorPosX(), ImGui::GetWindowContentRegionMax().x - legend_width));

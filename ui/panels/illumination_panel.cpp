@@ -15,14 +15,6 @@ namespace {
 
 constexpr ImU32 kDarkText = rgba(24, 22, 18);
 
-void section_title(const char* title, const char* detail = nullptr) {
-  ImGui::TextUnformatted(title);
-  if (detail != nullptr && *detail != '\0') {
-    ImGui::SameLine(0.0f, 6.0f);
-    ImGui::TextColored(to_vec4(colours::text_dim), "%s", detail);
-  }
-}
-
 ImU32 confidence_colour(Confidence c) {
   switch (c) {
     case Confidence::High: return colours::recommended;
@@ -253,7 +245,7 @@ void IlluminationPanel::draw_wizard(const IlluminationStatus& status, const Snap
 
   // Title row: the scene type on the right.
   ImGui::AlignTextToFramePadding();
-  section_title("Power sweep", fmt::format("· {}", to_string(progress.stage)).c_str());
+  plot_title("Power sweep", fmt::format("· {}", to_string(progress.stage)).c_str());
   const SceneType* scene = status.scene();
   const float combo_width = std::min(200.0f, 0.45f * ImGui::GetContentRegionAvail().x);
   ImGui::SameLine(ImGui::GetWindowContentRegionMax().x - combo_width);
@@ -408,7 +400,7 @@ void IlluminationPanel::draw_plot(const IlluminationStatus& status, float height
   const bool show_detail =
       !detail.empty() && title_width + 6.0f + ImGui::CalcTextSize(detail.c_str()).x + 12.0f +
                                  (show_legend ? legend_width : 0.0f) <= avail_width;
-  section_title("Entropy vs power", show_detail ? detail.c_str() : "");
+  plot_title("Entropy vs power", show_detail ? detail.c_str() : "");
   if (show_legend) {
     ImGui::SameLine();
     ImGui::SetCursorPosX(std::max(ImGui::GetCursorPosX(), ImGui::GetWindowContentRegionMax().x - legend_width));

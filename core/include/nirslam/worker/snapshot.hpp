@@ -89,4 +89,7 @@ struct Snapshot {
   std::string message;              // last status or error, for the operator
 };
 
+// The worker stopped on its own (end of the input or an error): its snapshots no longer change.
+inline bool settled(const Snapshot& s) { return s.state == WorkerState::Finished || s.state == WorkerState::Failed; }
+
 }  // namespace nirslam

@@ -22,9 +22,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr int kWidth = 160, kHeight = 120;
+constexpr int kVignetteWidth = 160, kVignetteHeight = 120;
 
-fs::path fresh_folder(const std::string& name) {
+fs::path fresh_calibration_folder(const std::string& name) {
   const fs::path folder = fs::temp_directory_path() /
                           ("nirslam_given_" + name + "_" + std::to_string(std::random_device{}()));
   fs::create_directories(folder);
@@ -33,9 +33,9 @@ fs::path fresh_folder(const std::string& name) {
 
 // The files `nirslam simulate` and `nirslam calibrate` write for this model.
 fs::path write_dso_files(const std::string& name, const ResponseModel& response, const VignetteModel& vignette) {
-  const fs::path folder = fresh_folder(name);
+  const fs::path folder = fresh_calibration_folder(name);
   write_pcalib(folder / "pcalib.txt", response.inverse_table(256));
-  write_vignette_png(folder / "vignette.png", vignette.render(kWidth, kHeight));
+  write_vignette_png(folder / "vignette.png", vignette.render(kVignetteWidth, kVignetteHeight));
   return folder;
 }
 
@@ -63,7 +63,7 @@ TEST(GivenCalibration, ResponseFitOfACurveOutsideTheBasisSaysItsError) {
 
 TEST(GivenCalibration, VignetteFitRecoversTheModelUpToScale) {
   const VignetteModel truth{Eigen::Vector3d(-0.35, 0.12, -0.08)};
-  cv::Mat image = truth.render(kWidth, kHeight) * 0.7;
+  cv::Mat image = truth.render(kVignetteWidth, kVignetteHeight) * 0.7;
   const VignetteFit fit = fit_vignette_to_image(image);
   EXPECT_LT((fit.vignette.v - truth.v).norm(), 1e-4) << fit.vignette.v.transpose();
   EXPECT_LT(fit.max, 1e-4);  // the image is float
@@ -86,7 +86,7 @@ TEST(GivenCalibration, FolderRoundTripsAndSaysWhatItRead) {
   const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Log);
   const VignetteModel vignette{Eigen::Vector3d(-0.3, 0.05, -0.02)};
   const fs::path folder = write_dso_files("roundtrip", response, vignette);
-  const GivenPhotometricCalibration given = read_given_calibration(folder, kWidth, kHeight);
+  const GivenPhotometricCalibration given = read_given_calibration(folder, kVignetteWidth, kVignetteHeight);
   // pcalib.txt holds G to a few decimals and vignette.png V to 16 bits: close, not exact.
   EXPECT_LT((given.response.coefficients() - response.coefficients()).norm(), 1e-3);
   EXPECT_LT((given.vignette.v - vignette.v).norm(), 2e-3);
@@ -96,13 +96,13 @@ TEST(GivenCalibration, FolderRoundTripsAndSaysWhatItRead) {
 
   // Without vignette.png: no vignetting, and the description says so.
   fs::remove(folder / "vignette.png");
-  const GivenPhotometricCalibration response_only = read_given_calibration(folder, kWidth, kHeight);
+  const GivenPhotometricCalibration response_only = read_given_calibration(folder, kVignetteWidth, kVignetteHeight);
   EXPECT_EQ(response_only.vignette.v, Eigen::Vector3d::Zero());
   EXPECT_NE(response_only.description.find("no vignetting"), std::string::npos) << response_only.description;
   fs::remove_all(folder);
 }
 
-std::string error_of(const fs::path& folder, int width = kWidth, int height = kHeight) {
+std::string given_calibration_error(const fs::path& folder, int width = kVignetteWidth, int height = kVignetteHeight) {
   try {
     read_given_calibration(folder, width, height);
   } catch (const InputError& e) {
@@ -114,7 +114,7 @@ std::string error_of(const fs::path& folder, int width = kWidth, int height = kH
 TEST(GivenCalibration, BadFilesAreRefusedByName) {
   const fs::path folder = write_dso_files("bad", ResponseModel::from_preset(ResponsePreset::Gamma), VignetteModel{});
   // The vignette of another camera.
-  std::string e = error_of(folder, 320, 240);
+  std::string e = given_calibration_error(folder, 320, 240);
   EXPECT_NE(e.find("vignette.png"), std::string::npos) << e;
   EXPECT_NE(e.find("160x120"), std::string::npos) << e;
   // A response the model cannot follow (a hard knee: linear, then flat at the top).
@@ -122,23 +122,23 @@ TEST(GivenCalibration, BadFilesAreRefusedByName) {
     std::ofstream out(folder / "pcalib.txt");
     for (int i = 0; i < 256; ++i) out << (i < 200 ? i * 0.2 : 40.0 + (i - 200) * 3.9) << ' ';
   }
-  e = error_of(folder);
+  e = given_calibration_error(folder);
   EXPECT_NE(e.find("pcalib.txt"), std::string::npos) << e;
   EXPECT_NE(e.find("response model"), std::string::npos) << e;
   // A vignette the radial model cannot follow (one bright quadrant).
   write_pcalib(folder / "pcalib.txt", ResponseModel::from_preset(ResponsePreset::Gamma).inverse_table(256));
-  cv::Mat lopsided(kHeight, kWidth, CV_32FC1, cv::Scalar(0.6f));
-  lopsided(cv::Rect(0, 0, kWidth / 2, kHeight / 2)).setTo(1.0f);
+  cv::Mat lopsided(kVignetteHeight, kVignetteWidth, CV_32FC1, cv::Scalar(0.6f));
+  lopsided(cv::Rect(0, 0, kVignetteWidth / 2, kVignetteHeight / 2)).setTo(1.0f);
   write_vignette_png(folder / "vignette.png", lopsided);
-  e = error_of(folder);
+  e = given_calibration_error(folder);
   EXPECT_NE(e.find("vignette.png"), std::string::npos) << e;
   EXPECT_NE(e.find("radial vignette model"), std::string::npos) << e;
   // No pcalib.txt, and not a folder at all.
   fs::remove(folder / "pcalib.txt");
-  e = error_of(folder);
+  e = given_calibration_error(folder);
   EXPECT_NE(e.find("pcalib.txt"), std::string::npos) << e;
   EXPECT_NE(e.find("missing"), std::string::npos) << e;
-  e = error_of(folder / "no_such_folder");
+  e = given_calibration_error(folder / "no_such_folder");
   EXPECT_NE(e.find("no_such_folder"), std::string::npos) << e;
   fs::remove_all(folder);
 }
@@ -151,10 +151,10 @@ TEST(GivenCalibration, PipelineHoldsTheGivenModel) {
   options.mode = PipelineMode::Calibrated;
   options.calibration.background_thread = false;
   options.given_calibration_folder = folder;
-  const auto camera = std::make_shared<PinholeCamera>(kWidth, kHeight, Eigen::Vector4d(130.0, 130.0, 80.0, 60.0));
+  const auto camera = std::make_shared<PinholeCamera>(kVignetteWidth, kVignetteHeight, Eigen::Vector4d(130.0, 130.0, 80.0, 60.0));
   SlamPipeline pipeline(options, camera);
   ASSERT_NE(pipeline.calibration(), nullptr);
-  cv::Mat texture(kHeight, kWidth, CV_8UC1);
+  cv::Mat texture(kVignetteHeight, kVignetteWidth, CV_8UC1);
   cv::randu(texture, 40, 200);
   for (int i = 0; i < 12; ++i) {
     Frame frame;
@@ -166,10 +166,10 @@ TEST(GivenCalibration, PipelineHoldsTheGivenModel) {
     const PipelineFrameResult result = pipeline.process(frame);
     ASSERT_FALSE(result.corrected.empty());
     // G(I)/V of the given model at the centre and at a corner (vignette 0.75 there).
-    const double grey_centre = texture.at<std::uint8_t>(kHeight / 2, kWidth / 2) + 2.0 * (i % 3);
+    const double grey_centre = texture.at<std::uint8_t>(kVignetteHeight / 2, kVignetteWidth / 2) + 2.0 * (i % 3);
     const double irradiance_centre = 255.0 * response.inverse(grey_centre / 255.0) /
-                                     vignette(VignetteModel::radius(kWidth / 2, kHeight / 2, kWidth, kHeight));
-    EXPECT_NEAR(result.corrected.at<float>(kHeight / 2, kWidth / 2), irradiance_centre, 0.05 * irradiance_centre + 0.5);
+                                     vignette(VignetteModel::radius(kVignetteWidth / 2, kVignetteHeight / 2, kVignetteWidth, kVignetteHeight));
+    EXPECT_NEAR(result.corrected.at<float>(kVignetteHeight / 2, kVignetteWidth / 2), irradiance_centre, 0.05 * irradiance_centre + 0.5);
   }
   const auto estimate = pipeline.calibration()->estimate();
   EXPECT_EQ(estimate->model_version, 0) << "held, never re-estimated";

@@ -101,9 +101,9 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   EXPECT_NE(missing.find("no_such_lens.png"), std::string::npos) << missing;
   // So is a given photometric calibration's folder.
   fs::create_directories(fs::temp_directory_path() / "nirslam_given_calibration");
-  const PipelineConfig given = load_pipeline_config(write_yaml("given", "calibration:\n  given: nirslam_given_calibration\n"));
+  const PipelineConfig given = load_pipeline_config(write_pipeline_yaml("given", "calibration:\n  given: nirslam_given_calibration\n"));
   EXPECT_EQ(given.worker.pipeline.given_calibration_folder, fs::temp_directory_path() / "nirslam_given_calibration");
-  const std::string no_folder = error_of(write_yaml("given_missing", "calibration:\n  given: no_such_calibration\n"));
+  const std::string no_folder = pipeline_config_error(write_pipeline_yaml("given_missing", "calibration:\n  given: no_such_calibration\n"));
   EXPECT_NE(no_folder.find("calibration.given"), std::string::npos) << no_folder;
   EXPECT_NE(no_folder.find("no_such_calibration"), std::string::npos) << no_folder;
 }

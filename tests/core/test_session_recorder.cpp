@@ -225,7 +225,9 @@ TEST(SessionRecorder, QueueOverflowIsCountedAndListedNeverSilent) {
 class SessionRecorderOnTmpfs : public ::testing::Test {
 protected:
   void SetUp() override {
-    mount_point_ = fresh_session_dir("tmpfs_mount");
+    // One mount point per test: ctest runs the two at once (-j2), and a shared one was busy.
+    mount_point_ = fresh_session_dir(std::string("tmpfs_mount_") +
+                                     ::testing::UnitTest::GetInstance()->current_test_info()->name());
     if (::mount("tmpfs", mount_point_.c_str(), "tmpfs", 0, "size=2m") != 0)
       GTEST_SKIP() << "cannot mount a 2 MiB tmpfs at " << mount_point_ << " (" << std::strerror(errno)
                    << "): the full-disk test needs root (CI runs as root)";

@@ -151,8 +151,9 @@ TEST(GivenCalibration, PipelineHoldsTheGivenModel) {
   options.mode = PipelineMode::Calibrated;
   options.calibration.background_thread = false;
   options.given_calibration_folder = folder;
-  const auto camera = std::make_shared<PinholeCamera>(kVignetteWidth, kVignetteHeight, Eigen::Vector4d(130.0, 130.0, 80.0, 60.0));
-  SlamPipeline pipeline(options, camera);
+  // No camera: the odometry stays off (this test is about the held model, and the odometry on
+  // noise frames cost 20 s under the sanitizers).
+  SlamPipeline pipeline(options, nullptr);
   ASSERT_NE(pipeline.calibration(), nullptr);
   cv::Mat texture(kVignetteHeight, kVignetteWidth, CV_8UC1);
   cv::randu(texture, 40, 200);

@@ -273,9 +273,16 @@ int run_bench(const BenchOptions& o) {
   }
 
   const std::string markdown =
-      (o.dataset_calibration ? "Photometric calibration in the calibrated modes: given, each sequence's own pcalib.txt and "
-                               "vignette.png (run --photometric-calibration), not estimated online.\n\n"
-                             : "") +
+      (!o.dataset_calibration ? std::string()
+       : app_config().worker.pipeline.given_calibration_holds == GivenCalibrationParts::Both
+           ? std::string("Photometric calibration in the calibrated modes: given, each sequence's own pcalib.txt and "
+                         "vignette.png (run --photometric-calibration), not estimated online.\n\n")
+           : fmt::format("Photometric calibration in the calibrated modes: each sequence's own {} held (run "
+                         "--photometric-calibration, calibration.given_holds: {}), the rest estimated online.\n\n",
+                         app_config().worker.pipeline.given_calibration_holds == GivenCalibrationParts::Response
+                             ? "response (pcalib.txt)"
+                             : "lens vignette (vignette.png, times the configured beam)",
+                         to_string(app_config().worker.pipeline.given_calibration_holds))) +
       benchmark_markdown(table);
   {
     std::ofstream md(o.out_dir / "bench.md", std::ios::trunc);

@@ -71,8 +71,10 @@ void write_summary(const std::filesystem::path& file, const RunOptions& options,
   // Where the corrected frames' model came from: estimated online, or given as files.
   const nlohmann::json photometric_calibration =
       !runs_calibration(mode)                     ? nlohmann::json(nullptr)
-      : pipeline.given_calibration_folder.empty() ? nlohmann::json("online")
-                                                  : nlohmann::json(pipeline.given_calibration_folder.string());
+      : pipeline.given_calibration_folder.empty()
+          ? nlohmann::json("online")
+          : nlohmann::json({{"folder", pipeline.given_calibration_folder.string()},
+                            {"held", to_string(pipeline.given_calibration_holds)}});
   const double n = totals.frames > 0 ? static_cast<double>(totals.frames) : 1.0;
   nlohmann::json summary = {
       {"nirslam_version", NIRSLAM_VERSION},

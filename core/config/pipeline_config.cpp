@@ -100,6 +100,11 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
       calibration.fail_at("given", folder.string() + " is not a folder (one holding pcalib.txt and vignette.png)");
     pipeline.given_calibration_folder = folder;
   }
+  if (const auto holds = calibration.read_text("given_holds")) {
+    const auto parts = given_calibration_parts_from_string(*holds);
+    if (!parts) calibration.fail_at("given_holds", "expected both, response or vignette, got '" + *holds + "'");
+    pipeline.given_calibration_holds = *parts;
+  }
   calibration.reject_unknown_keys();
 
   YamlMapReader demo(root["demo"], file, "demo");

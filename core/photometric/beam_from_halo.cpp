@@ -92,6 +92,23 @@ BeamFit fit_beam_from_halo(const cv::Mat& halo_in, const cv::Mat& vignette_in, c
   return fit;
 }
 
+cv::Mat halo_with_beam(const cv::Mat& lens_vignette, const CameraModel& camera, double beam_exponent) {
+  if (lens_vignette.cols != camera.width() || lens_vignette.rows != camera.height())
+    throw std::invalid_argument(fmt::format("the lens vignette is {}x{} but the camera is {}x{}", lens_vignette.cols,
+                                            lens_vignette.rows, camera.width(), camera.height()));
+  cv::Mat halo = as_float(lens_vignette);
+  for (int y = 0; y < halo.rows; ++y) {
+    float* row = halo.ptr<float>(y);
+    for (int x = 0; x < halo.cols; ++x) {
+      const auto ray = camera.unproject(Eigen::Vector2d(x, y));
+      if (!ray) continue;
+      const double cos_alpha = ray->normalized().z();
+      if (cos_alpha > 0.0) row[x] *= static_cast<float>(std::pow(cos_alpha, beam_exponent));
+    }
+  }
+  return halo;
+}
+
 cv::Mat beam_pattern(const cv::Mat& halo, const cv::Mat& lens_vignette) {
   check_sizes(halo, lens_vignette);
   cv::Mat h = as_float(halo), v = as_float(lens_vignette), beam;

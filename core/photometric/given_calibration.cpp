@@ -96,42 +96,74 @@ VignetteFit fit_vignette_to_image(const cv::Mat& vignette) {
   return fit;
 }
 
-GivenPhotometricCalibration read_given_calibration(const std::filesystem::path& folder, int width, int height) {
+const char* to_string(GivenCalibrationParts parts) {
+  switch (parts) {
+    case GivenCalibrationParts::Both: return "both";
+    case GivenCalibrationParts::Response: return "response";
+    case GivenCalibrationParts::Vignette: return "vignette";
+  }
+  return "?";
+}
+
+std::optional<GivenCalibrationParts> given_calibration_parts_from_string(const std::string& text) {
+  for (const GivenCalibrationParts parts :
+       {GivenCalibrationParts::Both, GivenCalibrationParts::Response, GivenCalibrationParts::Vignette})
+    if (text == to_string(parts)) return parts;
+  return std::nullopt;
+}
+
+GivenPhotometricCalibration read_given_calibration(const std::filesystem::path& folder, int width, int height,
+                                                   GivenCalibrationParts parts) {
   if (!std::filesystem::is_directory(folder))
     throw InputError(folder, "the given photometric calibration must be a folder holding pcalib.txt (and vignette.png)");
   GivenPhotometricCalibration given;
+  given.parts = parts;
   given.folder = folder;
-  const std::filesystem::path pcalib = folder / "pcalib.txt";
-  given.response_fit = fit_response_to_inverse_table(read_pcalib(pcalib));
-  if (!given.response_fit.response.is_monotonic())
-    throw InputError(pcalib, "nirslam's response model cannot follow this inverse response (its fit does not increase)");
-  if (given.response_fit.rms_grey > kGivenResponseMaxRmsGrey)
-    throw InputError(pcalib, fmt::format("nirslam's response model follows this inverse response only to {:.2f} grey levels "
-                                         "rms (max {:.1f}); more than {:.1f} would correct the frames differently from the file",
-                                         given.response_fit.rms_grey, given.response_fit.max_grey, kGivenResponseMaxRmsGrey));
-  given.response = given.response_fit.response;
-  given.description = fmt::format("{} (fitted to {:.2f} grey levels rms, max {:.2f})", pcalib.string(),
-                                  given.response_fit.rms_grey, given.response_fit.max_grey);
+  given.response = ResponseModel::from_preset(ResponsePreset::Gamma);
+  if (parts != GivenCalibrationParts::Vignette) {
+    const std::filesystem::path pcalib = folder / "pcalib.txt";
+    const ResponseFit fit = fit_response_to_inverse_table(read_pcalib(pcalib));
+    if (!fit.response.is_monotonic())
+      throw InputError(pcalib, "nirslam's response model cannot follow this inverse response (its fit does not increase)");
+    if (fit.rms_grey > kGivenResponseMaxRmsGrey)
+      throw InputError(pcalib, fmt::format("nirslam's response model follows this inverse response only to {:.2f} grey "
+                                           "levels rms (max {:.1f}); more than {:.1f} would correct the frames "
+                                           "differently from the file",
+                                           fit.rms_grey, fit.max_grey, kGivenResponseMaxRmsGrey));
+    given.response = fit.response;
+    given.response_fit = fit;
+    given.response_description =
+        fmt::format("{} (fitted to {:.2f} grey levels rms, max {:.2f})", pcalib.string(), fit.rms_grey, fit.max_grey);
+  }
 
   const std::filesystem::path vignette_png = folder / "vignette.png";
-  if (!std::filesystem::exists(vignette_png)) {
-    given.description += "; no vignette.png: no vignetting";
-    return given;
+  if (parts != GivenCalibrationParts::Response) {
+    if (!std::filesystem::exists(vignette_png)) {
+      if (parts == GivenCalibrationParts::Vignette)
+        throw InputError(vignette_png, "only the vignette is to be held from this folder, but it has no vignette.png");
+      given.vignette_description = "no vignette.png: no vignetting";
+    } else {
+      const cv::Mat vignette = read_vignette_png(vignette_png);
+      if (width > 0 && height > 0 && (vignette.cols != width || vignette.rows != height))
+        throw InputError(vignette_png,
+                         fmt::format("the vignette is {}x{}, the camera {}x{}", vignette.cols, vignette.rows, width, height));
+      VignetteFit fit = fit_vignette_to_image(vignette);
+      bool positive = true;
+      for (int j = 0; j <= 1000; ++j) positive = positive && fit.vignette(j / 1000.0) > 0.0;
+      if (!positive) throw InputError(vignette_png, "nirslam's vignette model fitted to this image is not positive everywhere");
+      if (fit.rms > kGivenVignetteMaxRms)
+        throw InputError(vignette_png, fmt::format("nirslam's radial vignette model follows this image only to {:.4f} rms "
+                                                   "(max {:.3f}); more than {:.3f} would correct the frames differently "
+                                                   "from the file",
+                                                   fit.rms, fit.max, kGivenVignetteMaxRms));
+      given.vignette = fit.vignette;
+      given.vignette_description = fmt::format("{} (fitted to {:.4f} rms, max {:.4f})", vignette_png.string(), fit.rms, fit.max);
+      given.vignette_fit = fit;
+    }
   }
-  const cv::Mat vignette = read_vignette_png(vignette_png);
-  if (width > 0 && height > 0 && (vignette.cols != width || vignette.rows != height))
-    throw InputError(vignette_png, fmt::format("the vignette is {}x{}, the camera {}x{}", vignette.cols, vignette.rows, width, height));
-  VignetteFit fit = fit_vignette_to_image(vignette);
-  bool positive = true;
-  for (int j = 0; j <= 1000; ++j) positive = positive && fit.vignette(j / 1000.0) > 0.0;
-  if (!positive) throw InputError(vignette_png, "nirslam's vignette model fitted to this image is not positive everywhere");
-  if (fit.rms > kGivenVignetteMaxRms)
-    throw InputError(vignette_png, fmt::format("nirslam's radial vignette model follows this image only to {:.4f} rms (max "
-                                               "{:.3f}); more than {:.3f} would correct the frames differently from the file",
-                                               fit.rms, fit.max, kGivenVignetteMaxRms));
-  given.vignette = fit.vignette;
-  given.description += fmt::format(", {} (fitted to {:.4f} rms, max {:.4f})", vignette_png.string(), fit.rms, fit.max);
-  given.vignette_fit = fit;
+  given.description = given.response_description;
+  if (!given.vignette_description.empty())
+    given.description += (given.description.empty() ? "" : given.vignette_fit ? ", " : "; ") + given.vignette_description;
   return given;
 }
 

@@ -130,9 +130,12 @@ std::shared_ptr<const PhotometricEstimate> OnlinePhotometricCalibration::initial
   } else if (options_.response_from_power_sweep) {
     e->ambiguity = AmbiguityResolution::PowerSweep;
     e->ambiguity_detail = "response calibrated from an illuminator power sweep and held";
+  } else if (!options_.given_part.empty() && !options_.backend.estimate_response) {
+    e->ambiguity = AmbiguityResolution::Given;
+    e->ambiguity_detail = options_.given_part;
   } else {
     e->ambiguity = AmbiguityResolution::Normalisation;
-    e->ambiguity_detail = "not yet decided (no keyframe yet)";
+    e->ambiguity_detail = "not yet decided (no keyframe yet)" + (options_.given_part.empty() ? "" : "; " + options_.given_part);
   }
   e->status = !options_.given_model.empty() ? "given calibration held (no online estimation)"
                : options_.run_backend         ? "no keyframe yet: initial model"
@@ -336,6 +339,10 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
   if (options_.response_from_power_sweep) {
     e->ambiguity = AmbiguityResolution::PowerSweep;
     e->ambiguity_detail = "response calibrated from an illuminator power sweep (radiance proportional to power) and held";
+  } else if (!options_.given_part.empty() && !options_.backend.estimate_response) {
+    e->ambiguity = AmbiguityResolution::Given;
+    e->ambiguity_detail = options_.given_part + (saw_known_exposure_ ? "; the source's exposures held"
+                                                                     : "; first frame's exposure = 1 (relative units)");
   } else if (saw_known_exposure_) {
     e->ambiguity = AmbiguityResolution::KnownExposures;
     e->ambiguity_detail = "exposure times x gain reported by the source hold the keyframe exposures";
@@ -355,6 +362,8 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
           "the prior towards the initial response";
     }
   }
+  if (!options_.given_part.empty() && e->ambiguity != AmbiguityResolution::Given)
+    e->ambiguity_detail += "; " + options_.given_part;
   e->status = rejection.empty() ? step.status
                                 : step.status + "; NOT USED, " + rejection + "; last good estimate (version " +
                                       std::to_string(previous->model_version) + ") kept";

@@ -79,21 +79,16 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
   if (options_.light_offset_estimation.beam_exponent < 0.0)
     options_.light_offset_estimation.beam_exponent = options_.odometry.beam_exponent;
   const bool given_calibration = runs_calibration(options_.mode) && !options_.given_calibration_folder.empty();
+  const double configured_beam_exponent = options_.odometry.beam_exponent;
   if (runs_calibration(options_.mode)) {
-    // An estimated halo factor holds the beam; a given lens vignette does not.
-    if (!given_calibration) options_.odometry.beam_exponent = 0.0;
+    // An estimated halo factor holds the beam; a given lens vignette held alone does not.
+    if (!given_calibration || options_.given_calibration_holds != GivenCalibrationParts::Both)
+      options_.odometry.beam_exponent = 0.0;
     options_.odometry.brightness_exponent = options_.corrected_frame_exponent;
   } else {
     options_.odometry.brightness_exponent = options_.raw_frame_exponent;
   }
-  if (given_calibration) {
-    const GivenPhotometricCalibration given = read_given_calibration(
-        options_.given_calibration_folder, camera_ ? camera_->width() : 0, camera_ ? camera_->height() : 0);
-    options_.calibration.backend.initial_response = given.response;
-    options_.calibration.backend.initial_vignette = given.vignette;
-    options_.calibration.given_model = given.description;
-    spdlog::info("photometric calibration given: {}", given.description);
-  }
+  if (given_calibration) hold_given_calibration(configured_beam_exponent);
   if (runs_calibration(options_.mode))
     calibration_ = std::make_unique<OnlinePhotometricCalibration>(options_.calibration);
   if (options_.mode == PipelineMode::Quality) {
@@ -124,6 +119,46 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
 }
 
 SlamPipeline::~SlamPipeline() = default;
+
+void SlamPipeline::hold_given_calibration(double beam_exponent) {
+  const GivenCalibrationParts parts = options_.given_calibration_holds;
+  const GivenPhotometricCalibration given = read_given_calibration(
+      options_.given_calibration_folder, camera_ ? camera_->width() : 0, camera_ ? camera_->height() : 0, parts);
+  PhotometricBackendOptions& backend = options_.calibration.backend;
+  switch (parts) {
+    case GivenCalibrationParts::Both:
+      backend.initial_response = given.response;
+      backend.initial_vignette = given.vignette;
+      options_.calibration.given_model = given.description;
+      spdlog::info("photometric calibration given: {}", given.description);
+      return;
+    case GivenCalibrationParts::Response:
+      backend.initial_response = given.response;
+      backend.estimate_response = false;
+      options_.calibration.given_part = "response given: " + given.response_description;
+      break;
+    case GivenCalibrationParts::Vignette: {
+      backend.initial_vignette = given.vignette;
+      backend.estimate_vignette = false;
+      options_.calibration.given_part = "lens vignette given: " + given.vignette_description;
+      if (beam_exponent > 0.0 && camera_) {
+        // The lamp lights what the camera sees through its beam: the halo the frames show.
+        const VignetteFit halo = fit_vignette_to_image(
+            halo_with_beam(given.vignette.render(camera_->width(), camera_->height()), *camera_, beam_exponent));
+        if (halo.rms > kGivenVignetteMaxRms)
+          throw InputError(options_.given_calibration_folder / "vignette.png",
+                           fmt::format("this lens vignette times the lamp's beam cos(alpha)^{:.2f} fits nirslam's radial "
+                                       "model only to {:.4f} rms (max {:.3f})",
+                                       beam_exponent, halo.rms, halo.max));
+        backend.initial_vignette = halo.vignette;
+        options_.calibration.given_part +=
+            fmt::format(" times the lamp's beam cos(alpha)^{:.2f} (fitted to {:.4f} rms)", beam_exponent, halo.rms);
+      }
+      break;
+    }
+  }
+  spdlog::info("photometric calibration partly given, the rest estimated online: {}", options_.calibration.given_part);
+}
 
 const PinholeCamera* SlamPipeline::odometry_camera() const { return odometry_ ? pinhole_.get() : nullptr; }
 

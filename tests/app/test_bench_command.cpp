@@ -47,7 +47,7 @@ TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
   bool names_config = false, names_calibration = false;
   for (const std::string& line : summary) {
     names_config |= line.find("my-pipeline.yaml") != std::string::npos;
-    names_calibration |= line.find("\"photometric_calibration\": \"" + (out / "sequences").string()) != std::string::npos;
+    names_calibration |= line.find("\"folder\": \"" + (out / "sequences").string()) != std::string::npos;
   }
   EXPECT_TRUE(names_config) << "the run's summary names bench's --config file";
   EXPECT_TRUE(names_calibration) << "the run's summary names the given calibration";

@@ -164,7 +164,8 @@ TEST(RunCommand, GivenPhotometricCalibrationIsHeldAndNamed) {
   EXPECT_NE(r.output.find("photometric calibration given"), std::string::npos) << r.output;
   std::ifstream summary_file(out / "summary.json");
   const auto summary = nlohmann::json::parse(summary_file);
-  EXPECT_EQ(summary["photometric_calibration"], sequence.string());
+  EXPECT_EQ(summary["photometric_calibration"]["folder"], sequence.string());
+  EXPECT_EQ(summary["photometric_calibration"]["held"], "both");
   std::ifstream calibration_file(out / "calibration" / "calibration.json");
   const auto calibration = nlohmann::json::parse(calibration_file);
   EXPECT_EQ(calibration["ambiguity_resolution"], "given calibration") << calibration.dump(2);

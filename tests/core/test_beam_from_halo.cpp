@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "nirslam/photometric/beam_from_halo.hpp"
+#include "nirslam/photometric/given_calibration.hpp"
 #include "nirslam/photometric/response_model.hpp"
 #include "nirslam/sim/simulator.hpp"
 
@@ -17,19 +18,11 @@ PinholeCamera wide_camera() {
   return PinholeCamera(640, 480, Eigen::Vector4d(f, f, 319.5, 239.5));
 }
 
-cv::Mat beam_image(const CameraModel& camera, double m) {
-  cv::Mat beam(camera.height(), camera.width(), CV_32FC1);
-  for (int y = 0; y < camera.height(); ++y)
-    for (int x = 0; x < camera.width(); ++x)
-      beam.at<float>(y, x) = static_cast<float>(std::pow(camera.unproject(Eigen::Vector2d(x, y))->normalized().z(), m));
-  return beam;
-}
-
 TEST(BeamFromHalo, RecoversTheBeamOfAnExactHalo) {
   const PinholeCamera camera = wide_camera();
   const cv::Mat lens = VignetteModel{Eigen::Vector3d(-0.35, 0.10, -0.05)}.render(640, 480);
   const double m = std::log(0.5) / std::log(std::cos(30.0 * M_PI / 180.0));  // a 30 degree beam: 4.82
-  const cv::Mat halo = lens.mul(beam_image(camera, m)) * 0.8;  // any scale
+  const cv::Mat halo = halo_with_beam(lens, camera, m) * 0.8;  // any scale
   const BeamFit fit = fit_beam_from_halo(halo, lens * 65535.0, camera);
   ASSERT_TRUE(fit.ok) << fit.reason;
   EXPECT_NEAR(fit.beam_exponent, m, 1e-3);
@@ -57,6 +50,30 @@ TEST(BeamFromHalo, FromTheSimulatorsHaloFactor) {
   // in r^2 follows cos(alpha)^m closely but not exactly over the whole image.
   EXPECT_NEAR(fit.beam_exponent, m, 0.02 * m);
   EXPECT_NEAR(fit.half_angle_deg, o.beam_half_angle_deg, 0.3);
+}
+
+TEST(BeamFromHalo, HaloOfALensVignetteUnderABeam) {
+  const PinholeCamera camera = wide_camera();
+  const cv::Mat lens = VignetteModel{Eigen::Vector3d(-0.35, 0.10, -0.05)}.render(640, 480);
+  const double m = 4.82;
+  const cv::Mat halo = halo_with_beam(lens, camera, m);
+  ASSERT_EQ(halo.type(), CV_32FC1);
+  // On the axis the beam is 1; at a corner (alpha = atan(|x - c| / f)) cos(alpha)^m.
+  EXPECT_NEAR(halo.at<float>(239, 319), lens.at<float>(239, 319), 1e-4);
+  const double f = camera.intrinsics()[0];
+  const double corner_cos = f / std::sqrt(f * f + 319.5 * 319.5 + 239.5 * 239.5);
+  EXPECT_NEAR(halo.at<float>(0, 0), lens.at<float>(0, 0) * std::pow(corner_cos, m), 1e-4);
+  // The simulator renders its frames with the lens vignette times this beam, and its
+  // halo_factor() is that product fitted by the radial polynomial: the same curve.
+  SimulatorOptions o;
+  const Simulator sim(o);
+  const VignetteFit fitted = fit_vignette_to_image(
+      halo_with_beam(o.vignette.render(o.width, o.height), *sim.camera(), sim.lighting(50.0).illuminator.beam_exponent()));
+  // The corner differs most (0.015 measured): the simulator fits along the diagonal with V(0) = 1,
+  // fit_vignette_to_image over the image's area with a free scale, where few pixels reach r = 1.
+  for (int i = 0; i <= 10; ++i)
+    EXPECT_NEAR(fitted.vignette(i / 10.0), sim.halo_factor()(i / 10.0), i < 10 ? 0.01 : 0.02) << "r " << i / 10.0;
+  EXPECT_THROW(halo_with_beam(VignetteModel{}.render(320, 240), camera, m), std::invalid_argument);
 }
 
 TEST(BeamFromHalo, NoBeamOrNoAngleSaysWhy) {

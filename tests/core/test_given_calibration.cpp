@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <memory>
 #include <random>
@@ -75,8 +76,9 @@ TEST(GivenCalibration, RealEurocEstimateFits) {
   const fs::path folder = fs::path(NIRSLAM_SHARED_DATA_DIR) / "euroc_v1_01_micro" / "photometric_estimate";
   const GivenPhotometricCalibration given = read_given_calibration(folder, 752, 480);
   EXPECT_TRUE(given.response.is_monotonic());
-  EXPECT_LT(given.response_fit.rms_grey, 1.0);
-  EXPECT_LT(given.response_fit.max_grey, 2.5);
+  ASSERT_TRUE(given.response_fit);
+  EXPECT_LT(given.response_fit->rms_grey, 1.0);
+  EXPECT_LT(given.response_fit->max_grey, 2.5);
   ASSERT_TRUE(given.vignette_fit);
   EXPECT_LT(given.vignette_fit->rms, 0.001);
   EXPECT_LT(given.vignette(1.0), 0.85) << "the corners are darker";
@@ -99,6 +101,41 @@ TEST(GivenCalibration, FolderRoundTripsAndSaysWhatItRead) {
   const GivenPhotometricCalibration response_only = read_given_calibration(folder, kVignetteWidth, kVignetteHeight);
   EXPECT_EQ(response_only.vignette.v, Eigen::Vector3d::Zero());
   EXPECT_NE(response_only.description.find("no vignetting"), std::string::npos) << response_only.description;
+  fs::remove_all(folder);
+}
+
+TEST(GivenCalibration, EachPartReadsItsOwnFile) {
+  const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Log);
+  const VignetteModel vignette{Eigen::Vector3d(-0.3, 0.05, -0.02)};
+  const fs::path folder = write_dso_files("parts", response, vignette);
+  fs::remove(folder / "vignette.png");
+  const GivenPhotometricCalibration response_part =
+      read_given_calibration(folder, kVignetteWidth, kVignetteHeight, GivenCalibrationParts::Response);
+  EXPECT_LT((response_part.response.coefficients() - response.coefficients()).norm(), 1e-3);
+  EXPECT_FALSE(response_part.vignette_fit);
+  EXPECT_EQ(response_part.description, response_part.response_description);
+  EXPECT_NE(response_part.description.find("pcalib.txt"), std::string::npos) << response_part.description;
+
+  // A lens vignette alone: no pcalib.txt needed, the response left at the gamma start.
+  write_vignette_png(folder / "vignette.png", vignette.render(kVignetteWidth, kVignetteHeight));
+  fs::remove(folder / "pcalib.txt");
+  const GivenPhotometricCalibration vignette_part =
+      read_given_calibration(folder, kVignetteWidth, kVignetteHeight, GivenCalibrationParts::Vignette);
+  EXPECT_LT((vignette_part.vignette.v - vignette.v).norm(), 2e-3);
+  EXPECT_FALSE(vignette_part.response_fit);
+  EXPECT_EQ(vignette_part.response.coefficients(), ResponseModel::from_preset(ResponsePreset::Gamma).coefficients());
+  EXPECT_EQ(vignette_part.description.find("pcalib.txt"), std::string::npos) << vignette_part.description;
+
+  // The vignette to hold must be there.
+  fs::remove(folder / "vignette.png");
+  try {
+    read_given_calibration(folder, kVignetteWidth, kVignetteHeight, GivenCalibrationParts::Vignette);
+    FAIL() << "no vignette.png";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("vignette.png"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(given_calibration_parts_from_string("response"), GivenCalibrationParts::Response);
+  EXPECT_EQ(given_calibration_parts_from_string("lens"), std::nullopt);
   fs::remove_all(folder);
 }
 
@@ -143,6 +180,57 @@ TEST(GivenCalibration, BadFilesAreRefusedByName) {
   fs::remove_all(folder);
 }
 
+// Frames of a static noise texture with a small brightness ramp (the pipeline tests have no camera,
+// so no odometry: what they check is the calibration's model).
+void feed_noise_frames(SlamPipeline& pipeline, int count, const std::function<void(int, const Frame&, const PipelineFrameResult&)>& check) {
+  cv::Mat texture(kVignetteHeight, kVignetteWidth, CV_8UC1);
+  cv::randu(texture, 40, 200);
+  for (int i = 0; i < count; ++i) {
+    Frame frame;
+    texture.convertTo(frame.image, CV_8UC1, 1.0, 2.0 * (i % 3));
+    frame.index = i;
+    frame.timestamp_s = i / 30.0;
+    frame.exposure_ms = 10.0 + i;
+    frame.name = "frame" + std::to_string(i);
+    const PipelineFrameResult result = pipeline.process(frame);
+    ASSERT_FALSE(result.corrected.empty());
+    check(i, frame, result);
+  }
+}
+
+TEST(GivenCalibration, PipelineHoldsAGivenPartAndEstimatesTheRest) {
+  const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Filmic);
+  const VignetteModel vignette{Eigen::Vector3d(-0.25, 0.0, 0.0)};
+  const fs::path folder = write_dso_files("pipeline_parts", response, vignette);
+  PipelineOptions options;
+  options.mode = PipelineMode::Calibrated;
+  options.calibration.background_thread = false;
+  options.given_calibration_folder = folder;
+
+  options.given_calibration_holds = GivenCalibrationParts::Response;
+  {
+    SlamPipeline pipeline(options, nullptr);
+    ASSERT_NE(pipeline.calibration(), nullptr);
+    feed_noise_frames(pipeline, 6, [](int, const Frame&, const PipelineFrameResult&) {});
+    const auto estimate = pipeline.calibration()->estimate();
+    EXPECT_EQ(estimate->ambiguity, AmbiguityResolution::Given) << "the file's response fixes gamma and scale";
+    EXPECT_NE(estimate->ambiguity_detail.find("response given"), std::string::npos) << estimate->ambiguity_detail;
+    EXPECT_EQ(estimate->status.find("held (no online estimation)"), std::string::npos) << estimate->status;
+    EXPECT_LT((estimate->response.coefficients() - response.coefficients()).norm(), 1e-3);
+    EXPECT_EQ(estimate->vignette.v, Eigen::Vector3d::Zero()) << "the vignette starts where it starts without files";
+  }
+  options.given_calibration_holds = GivenCalibrationParts::Vignette;
+  {
+    SlamPipeline pipeline(options, nullptr);
+    feed_noise_frames(pipeline, 6, [](int, const Frame&, const PipelineFrameResult&) {});
+    const auto estimate = pipeline.calibration()->estimate();
+    EXPECT_NE(estimate->ambiguity, AmbiguityResolution::Given) << "the response is estimated";
+    EXPECT_NE(estimate->ambiguity_detail.find("lens vignette given"), std::string::npos) << estimate->ambiguity_detail;
+    EXPECT_LT((estimate->vignette.v - vignette.v).norm(), 2e-3);
+  }
+  fs::remove_all(folder);
+}
+
 TEST(GivenCalibration, PipelineHoldsTheGivenModel) {
   const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Filmic);
   const VignetteModel vignette{Eigen::Vector3d(-0.25, 0.0, 0.0)};
@@ -155,23 +243,13 @@ TEST(GivenCalibration, PipelineHoldsTheGivenModel) {
   // noise frames cost 20 s under the sanitizers).
   SlamPipeline pipeline(options, nullptr);
   ASSERT_NE(pipeline.calibration(), nullptr);
-  cv::Mat texture(kVignetteHeight, kVignetteWidth, CV_8UC1);
-  cv::randu(texture, 40, 200);
-  for (int i = 0; i < 12; ++i) {
-    Frame frame;
-    texture.convertTo(frame.image, CV_8UC1, 1.0, 2.0 * (i % 3));
-    frame.index = i;
-    frame.timestamp_s = i / 30.0;
-    frame.exposure_ms = 10.0 + i;
-    frame.name = "frame" + std::to_string(i);
-    const PipelineFrameResult result = pipeline.process(frame);
-    ASSERT_FALSE(result.corrected.empty());
-    // G(I)/V of the given model at the centre and at a corner (vignette 0.75 there).
-    const double grey_centre = texture.at<std::uint8_t>(kVignetteHeight / 2, kVignetteWidth / 2) + 2.0 * (i % 3);
+  feed_noise_frames(pipeline, 12, [&](int, const Frame& frame, const PipelineFrameResult& result) {
+    // G(I)/V of the given model at the centre.
+    const double grey_centre = frame.image.at<std::uint8_t>(kVignetteHeight / 2, kVignetteWidth / 2);
     const double irradiance_centre = 255.0 * response.inverse(grey_centre / 255.0) /
                                      vignette(VignetteModel::radius(kVignetteWidth / 2, kVignetteHeight / 2, kVignetteWidth, kVignetteHeight));
     EXPECT_NEAR(result.corrected.at<float>(kVignetteHeight / 2, kVignetteWidth / 2), irradiance_centre, 0.05 * irradiance_centre + 0.5);
-  }
+  });
   const auto estimate = pipeline.calibration()->estimate();
   EXPECT_EQ(estimate->model_version, 0) << "held, never re-estimated";
   EXPECT_EQ(estimate->ambiguity, AmbiguityResolution::Given);

@@ -106,6 +106,14 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   const std::string no_folder = pipeline_config_error(write_pipeline_yaml("given_missing", "calibration:\n  given: no_such_calibration\n"));
   EXPECT_NE(no_folder.find("calibration.given"), std::string::npos) << no_folder;
   EXPECT_NE(no_folder.find("no_such_calibration"), std::string::npos) << no_folder;
+  // Which part of it is held.
+  EXPECT_EQ(given.worker.pipeline.given_calibration_holds, GivenCalibrationParts::Both);
+  const PipelineConfig lens_only = load_pipeline_config(
+      write_pipeline_yaml("given_vignette", "calibration:\n  given: nirslam_given_calibration\n  given_holds: vignette\n"));
+  EXPECT_EQ(lens_only.worker.pipeline.given_calibration_holds, GivenCalibrationParts::Vignette);
+  const std::string bad_part = pipeline_config_error(write_pipeline_yaml("given_lens", "calibration:\n  given_holds: lens\n"));
+  EXPECT_NE(bad_part.find("calibration.given_holds"), std::string::npos) << bad_part;
+  EXPECT_NE(bad_part.find("'lens'"), std::string::npos) << bad_part;
 }
 
 TEST(PipelineConfig, MissingKeysKeepDefaults) {

@@ -31,6 +31,11 @@ struct BeamFit {
 BeamFit fit_beam_from_halo(const cv::Mat& halo, const cv::Mat& lens_vignette, const CameraModel& camera,
                            int step = 4, double min_value = 0.05);
 
+// The other way round: H(x) = V(x) cos(alpha)^m, the halo factor of a lens vignette (CV_32FC1 of
+// the camera's size, any scale) under a lamp of beam exponent m (its data sheet's half angle),
+// CV_32FC1. Pixels whose ray the camera cannot unproject keep V.
+cv::Mat halo_with_beam(const cv::Mat& lens_vignette, const CameraModel& camera, double beam_exponent);
+
 // B(x) = H(x) / V(x) scaled to 1 at its maximum (CV_32FC1), for display and beam.png.
 cv::Mat beam_pattern(const cv::Mat& halo, const cv::Mat& lens_vignette);
 

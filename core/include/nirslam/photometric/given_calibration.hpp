@@ -44,13 +44,25 @@ struct VignetteFit {
 // factor, by linear least squares over every pixel on a 4-pixel grid.
 VignetteFit fit_vignette_to_image(const cv::Mat& vignette);
 
+// Which part of a given calibration is held; the rest is estimated online. A response alone
+// (pcalib.txt) fixes the gamma and scale ambiguity; a vignette alone (vignette.png, e.g. the
+// lens's from a calibration with the lamp off) leaves the response to the back end.
+enum class GivenCalibrationParts { Both, Response, Vignette };
+
+const char* to_string(GivenCalibrationParts parts);
+// "both", "response" or "vignette"; std::nullopt for anything else.
+std::optional<GivenCalibrationParts> given_calibration_parts_from_string(const std::string& text);
+
 struct GivenPhotometricCalibration {
-  ResponseModel response;
+  GivenCalibrationParts parts = GivenCalibrationParts::Both;
+  ResponseModel response;  // the gamma preset when the response is not given
   VignetteModel vignette;  // V = 1 when the folder has no vignette.png
-  ResponseFit response_fit;
+  std::optional<ResponseFit> response_fit;
   std::optional<VignetteFit> vignette_fit;
   std::filesystem::path folder;
-  std::string description;  // for the log and the Photometric status: files and fit errors
+  std::string response_description;  // the file and its fit error; empty when not read
+  std::string vignette_description;
+  std::string description;  // both, for the log and the Photometric status
 };
 
 // Limits beyond which a given file is refused: the correction would differ from what the file
@@ -59,10 +71,12 @@ struct GivenPhotometricCalibration {
 inline constexpr double kGivenResponseMaxRmsGrey = 2.0;
 inline constexpr double kGivenVignetteMaxRms = 0.01;
 
-// Reads `folder`/pcalib.txt (required) and `folder`/vignette.png (optional) and fits the model
-// to them. Throws InputError naming the file: missing or malformed files, a vignette whose size
-// is not width x height (not checked when they are 0: the camera is not known), a fit beyond the
-// limits above or a response that does not increase.
-GivenPhotometricCalibration read_given_calibration(const std::filesystem::path& folder, int width, int height);
+// Reads `folder`/pcalib.txt (required unless only the vignette is given) and `folder`/vignette.png
+// (optional for Both, required for Vignette, not read for Response) and fits the model to them.
+// Throws InputError naming the file: missing or malformed files, a vignette whose size is not
+// width x height (not checked when they are 0: the camera is not known), a fit beyond the limits
+// above or a response that does not increase.
+GivenPhotometricCalibration read_given_calibration(const std::filesystem::path& folder, int width, int height,
+                                                   GivenCalibrationParts parts = GivenCalibrationParts::Both);
 
 }  // namespace nirslam

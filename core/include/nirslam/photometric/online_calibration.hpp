@@ -138,6 +138,10 @@ struct OnlineCalibrationOptions {
   // this text (files and fit errors): held as it is, the back end off, every grey level trusted.
   // Empty: the initial model is only a start.
   std::string given_model;
+  // Part of the initial model given from files and held (backend.estimate_response or
+  // estimate_vignette off), described by this text; the rest is estimated. A held response names
+  // the ambiguity resolution (Given) unless a power sweep does.
+  std::string given_part;
   EstimateGate gate;                  // estimates that fail it are not handed on (see EstimateGate)
   // The grey range (0..255) the held initial response was fitted over (PhotometricEstimate::
   // grey_low / grey_high of the run that estimated it): the exposure estimator then trusts G

@@ -25,6 +25,7 @@
 #include "nirslam/image/frame.hpp"
 #include "nirslam/odometry/direct_odometry.hpp"
 #include "nirslam/photometric/beam_from_halo.hpp"
+#include "nirslam/photometric/given_calibration.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/pipeline/keyframe_light_offset.hpp"
 #include "nirslam/pipeline/light_distance_map.hpp"
@@ -108,6 +109,13 @@ struct PipelineOptions {
   // those files. The vignette is then the lens's alone, so the odometry's beam term
   // (odometry.beam_exponent) stays on in the illuminated mode. Empty: estimated online.
   std::filesystem::path given_calibration_folder;
+  // Which part of it is held; the other is estimated online (the back end on). A held response
+  // leaves the halo factor (lens vignette and beam) to the back end, so the odometry's beam term
+  // goes off as without files. A held vignette is the lens's: the halo held is
+  // it times the configured beam, cos(alpha)^odometry.beam_exponent (beam_from_halo.hpp),
+  // fitted to the vignette model, and the odometry's beam term goes off too (the corrected frames
+  // no longer show the beam).
+  GivenCalibrationParts given_calibration_holds = GivenCalibrationParts::Both;
   bool light_offset_configured = false;
   bool estimate_light_offset = true;
   bool apply_estimated_light_offset = false;
@@ -212,6 +220,8 @@ private:
   int beam_fit_version_ = -1;       // the model version it was fitted to
   int frames_tracking_ = 0;         // since the odometry last (re)started tracking (hold_correction_frames)
   void fit_beam(const PhotometricEstimate& estimate);
+  // Reads options_.given_calibration_folder into the calibration's options (the constructor's).
+  void hold_given_calibration(double beam_exponent);
   void estimate_light_offset(const OdometryFrame& input, const cv::Mat& irradiance, const OdometryResult& result);
 
   // View state.

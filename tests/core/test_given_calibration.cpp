@@ -198,14 +198,19 @@ void feed_noise_frames(SlamPipeline& pipeline, int count, const std::function<vo
   }
 }
 
-TEST(GivenCalibration, PipelineHoldsAGivenPartAndEstimatesTheRest) {
-  const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Filmic);
-  const VignetteModel vignette{Eigen::Vector3d(-0.25, 0.0, 0.0)};
-  const fs::path folder = write_dso_files("pipeline_parts", response, vignette);
+PipelineOptions calibrated_with_files(const fs::path& folder) {
   PipelineOptions options;
   options.mode = PipelineMode::Calibrated;
   options.calibration.background_thread = false;
   options.given_calibration_folder = folder;
+  return options;
+}
+
+TEST(GivenCalibration, PipelineHoldsAGivenPartAndEstimatesTheRest) {
+  const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Filmic);
+  const VignetteModel vignette{Eigen::Vector3d(-0.25, 0.0, 0.0)};
+  const fs::path folder = write_dso_files("pipeline_parts", response, vignette);
+  PipelineOptions options = calibrated_with_files(folder);
 
   options.given_calibration_holds = GivenCalibrationParts::Response;
   {
@@ -235,10 +240,7 @@ TEST(GivenCalibration, PipelineHoldsTheGivenModel) {
   const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Filmic);
   const VignetteModel vignette{Eigen::Vector3d(-0.25, 0.0, 0.0)};
   const fs::path folder = write_dso_files("pipeline", response, vignette);
-  PipelineOptions options;
-  options.mode = PipelineMode::Calibrated;
-  options.calibration.background_thread = false;
-  options.given_calibration_folder = folder;
+  PipelineOptions options = calibrated_with_files(folder);
   // No camera: the odometry stays off (this test is about the held model, and the odometry on
   // noise frames cost 20 s under the sanitizers).
   SlamPipeline pipeline(options, nullptr);

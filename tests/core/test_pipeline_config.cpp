@@ -59,6 +59,13 @@ TEST(PipelineConfig, GivenCalibrationBenchFileAddsTheBeam) {
   EXPECT_NEAR(config.worker.pipeline.odometry.beam_exponent, std::log(0.5) / std::log(std::cos(30.0 * M_PI / 180.0)), 0.01);
 }
 
+TEST(PipelineConfig, LensVignetteBenchFileHoldsTheVignetteWithTheBeam) {
+  const PipelineConfig config = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-lens-vignette.yaml");
+  EXPECT_FALSE(config.worker.pipeline.calibration.background_thread);
+  EXPECT_EQ(config.worker.pipeline.given_calibration_holds, GivenCalibrationParts::Vignette);
+  EXPECT_NEAR(config.worker.pipeline.odometry.beam_exponent, std::log(0.5) / std::log(std::cos(30.0 * M_PI / 180.0)), 0.01);
+}
+
 TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
       "stages", "pipeline:\n  mode: odometry\n  corrected_frame_exponent: 1.0\n  raw_frame_exponent: 0.5\n  lamp_distance_max_log_spread: 0.1\n"

@@ -312,7 +312,8 @@ void add_bench_command(CLI::App& parent, CommandAction& action) {
   cmd->add_flag("--no-simulated", options->no_simulated, "Only the dataset folders given");
   cmd->add_flag("--dataset-calibration", options->dataset_calibration,
                 "The calibrated modes hold each sequence's own pcalib.txt and vignette.png (a TUM monoVO folder's; "
-                "simulated sequences carry the true ones) instead of estimating them online");
+                "simulated sequences carry the true ones) instead of estimating them online; the config's "
+                "calibration.given_holds may hold one of the two and estimate the other");
   cmd->add_option("-o,--out", options->out_dir, "Output folder (sequences are cached in OUT/sequences)")->capture_default_str();
   cmd->callback([options, &action] { action = [options] { return run_bench(*options); }; });
 }

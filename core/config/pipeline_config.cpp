@@ -105,6 +105,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
     if (!parts) calibration.fail_at("given_holds", "expected both, response or vignette, got '" + *holds + "'");
     pipeline.given_calibration_holds = *parts;
   }
+  calibration.read_flag("estimate_beam", pipeline.estimate_beam);
   calibration.reject_unknown_keys();
 
   YamlMapReader demo(root["demo"], file, "demo");

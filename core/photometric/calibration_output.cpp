@@ -164,6 +164,7 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
       {"vignette",
        {{"model", "V(r) = 1 + v1 r^2 + v2 r^4 + v3 r^6, r = distance to the image centre / half-diagonal"},
         {"coefficients", {estimate.vignette.v[0], estimate.vignette.v[1], estimate.vignette.v[2]}}}},
+      {"lamp_beam_exponent", estimate.beam_exponent ? nlohmann::json(*estimate.beam_exponent) : nlohmann::json(nullptr)},
       {"ambiguity_resolution", std::string(to_string(estimate.ambiguity))},
       {"ambiguity_detail", estimate.ambiguity_detail},
       {"exposure_unit", estimate.ambiguity == AmbiguityResolution::Normalisation ? "relative (first frame = 1)"

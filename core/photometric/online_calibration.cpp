@@ -124,6 +124,7 @@ std::shared_ptr<const PhotometricEstimate> OnlinePhotometricCalibration::initial
   auto e = std::make_shared<PhotometricEstimate>();
   e->response = backend_.response();
   e->vignette = backend_.vignette();
+  if (options_.backend.beam_halo) e->beam_exponent = backend_.beam_exponent();
   if (!options_.given_model.empty()) {
     e->ambiguity = AmbiguityResolution::Given;
     e->ambiguity_detail = options_.given_model;
@@ -316,11 +317,13 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
     e->response = backend_.response();
     e->vignette = backend_.vignette();
     e->model_version = ++version_;
+    if (options_.backend.beam_halo) e->beam_exponent = backend_.beam_exponent();
   } else {
     // Nothing new: the last good model, with the reason.
     e->response = previous->response;
     e->vignette = previous->vignette;
     e->model_version = previous->model_version;
+    e->beam_exponent = previous->beam_exponent;
   }
   e->converged = step.converged;
   e->iterations = step.iterations;

@@ -210,6 +210,10 @@ PhotometricBackend::PhotometricBackend(PhotometricBackendOptions options)
   if (!response_.is_monotonic()) throw std::invalid_argument("photometric back end: the initial response is not monotonic");
   if (options_.max_keyframes < 2 || options_.max_stored_keyframes < options_.max_keyframes || options_.max_points < 1)
     throw std::invalid_argument("photometric back end: bad window options");
+  if (options_.beam_halo) {
+    beam_exponent_ = options_.beam_halo->initial_exponent();
+    vignette_.v = options_.beam_halo->vignette(beam_exponent_);
+  }
 }
 
 void PhotometricBackend::reset() {
@@ -219,6 +223,10 @@ void PhotometricBackend::reset() {
   added_ = 0;
   updates_since_multi_start_ = 0;
   response_fitted_ = false;
+  if (options_.beam_halo) {
+    beam_exponent_ = options_.beam_halo->initial_exponent();
+    vignette_.v = options_.beam_halo->vignette(beam_exponent_);
+  }
 }
 
 void PhotometricBackend::add_keyframe(PhotometricKeyframe keyframe) {
@@ -663,15 +671,21 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   state.v = vignette_.v;
   // Steps must stay plausible (see the header), so start from a plausible V: the initial one,
   // else no vignetting.
-  if (step.vignette_estimated && options_.vignette_monotonic && !VignetteModel{state.v}.is_plausible())
+  // Beam steps (options.beam_halo): the vignette's unknown is the beam's exponent, q = (m, 0, 0).
+  const bool beam_steps = step.vignette_estimated && options_.beam_halo.has_value();
+  if (!beam_steps && step.vignette_estimated && options_.vignette_monotonic && !VignetteModel{state.v}.is_plausible())
     state.v = VignetteModel{options_.initial_vignette.v}.is_plausible() ? options_.initial_vignette.v
                                                                                      : Eigen::Vector3d::Zero();
   // Monotone steps (VignetteSteps): the LM works in q, v = vignette_from_monotone(q).
-  const bool monotone_steps = step.vignette_estimated && options_.vignette_monotonic &&
+  const bool monotone_steps = !beam_steps && step.vignette_estimated && options_.vignette_monotonic &&
                               (lit_problem_ ? options_.lit_vignette_steps : options_.vignette_steps) == VignetteSteps::Monotone;
   if (monotone_steps) {
     state.q = monotone_from_vignette(state.v);
     state.v = vignette_from_monotone(state.q);
+  }
+  if (beam_steps) {
+    state.q = Eigen::Vector3d(beam_exponent_, 0.0, 0.0);
+    state.v = options_.beam_halo->vignette(beam_exponent_);
   }
   state.exposure = exposure;
   update_u(state);
@@ -794,7 +808,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   constexpr int kRimRadii = 8;
   double rim_weight = 0.0;
   Eigen::Matrix<double, kRimRadii, 3> rim_jacobian = Eigen::Matrix<double, kRimRadii, 3>::Zero();
-  if (step.vignette_estimated && !monotone_steps && options_.vignette_rim_curvature_weight > 0.0) {
+  if (step.vignette_estimated && !monotone_steps && !beam_steps && options_.vignette_rim_curvature_weight > 0.0) {
     std::vector<double> radii;
     radii.reserve(observations_.size());
     for (const Observation& o : observations_) radii.push_back(o.radius);
@@ -837,9 +851,16 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     for (int iteration = 0; iteration < iterations; ++iteration) {
       H.setZero();
       b.setZero();
-      // With monotone steps the vignette unknowns are q: dr/dq = (dv/dq)^T dr/dv.
+      // With monotone or beam steps the vignette unknowns are q: dr/dq = (dv/dq)^T dr/dv (with
+      // beam steps only its first column, dv/dm, is not zero: q2 and q3 get no step).
       Eigen::Matrix3d dv_dq = Eigen::Matrix3d::Identity();
       if (monotone_steps) vignette_from_monotone(st.q, &dv_dq);
+      if (beam_steps) {
+        Eigen::Vector3d dv_dm;
+        options_.beam_halo->vignette(st.q[0], &dv_dm);
+        dv_dq.setZero();
+        dv_dq.col(0) = dv_dm;
+      }
       const Eigen::Matrix3d dv_dq_t = dv_dq.transpose();
       for (std::size_t pi = 0; pi < points_.size(); ++pi) {
         const Point& p = points_[pi];
@@ -884,7 +905,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
             jg[4] = dV * r2;
             jg[5] = dV * r2 * r2;
             jg[6] = dV * r2 * r2 * r2;
-            if (monotone_steps) jg.tail<3>() = dv_dq_t * jg.tail<3>().eval();
+            if (monotone_steps || beam_steps) jg.tail<3>() = dv_dq_t * jg.tail<3>().eval();
           } else {
             jg.tail<3>().setZero();
           }
@@ -975,6 +996,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
         dx_try = dx;
         // With monotone steps the step is in q and only V(1) > 0.05 can fail (bisected the same way).
         const auto stepped_v = [&](double t) -> Eigen::Vector3d {
+          if (beam_steps) return options_.beam_halo->vignette(st.q[0] + t * dx_try[4]);
           return monotone_steps ? vignette_from_monotone(st.q + t * dx_try.segment<3>(4))
                                 : Eigen::Vector3d(st.v + t * dx_try.segment<3>(4));
         };
@@ -988,7 +1010,9 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
             }
             dx_try.segment<3>(4) *= lo;
           }
-          trial.q = st.q + (monotone_steps ? Eigen::Vector3d(dx_try.segment<3>(4)) : Eigen::Vector3d::Zero());
+          trial.q = st.q + (monotone_steps ? Eigen::Vector3d(dx_try.segment<3>(4))
+                            : beam_steps   ? Eigen::Vector3d(dx_try[4], 0.0, 0.0)
+                                           : Eigen::Vector3d::Zero());
           trial.v = stepped_v(1.0);
           trial.exposure.resize(st.exposure.size());
           valid = true;
@@ -1070,6 +1094,10 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
         candidate.q = monotone_from_vignette(candidate.v);
         candidate.v = vignette_from_monotone(candidate.q);
       }
+      if (beam_steps) {
+        candidate.q = Eigen::Vector3d(initial_v ? options_.beam_halo->initial_exponent() : state.q[0], 0.0, 0.0);
+        candidate.v = options_.beam_halo->vignette(candidate.q[0]);
+      }
       candidate.exposure = state.exposure;
       update_u(candidate);
       initialise_radiances(candidate);
@@ -1110,6 +1138,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   if (step.updated && step.response_estimated) response_fitted_ = true;
   response_ = ResponseModel(state.c);
   vignette_.v = state.v;
+  if (beam_steps) beam_exponent_ = state.q[0];
   for (int w = 0; w < K; ++w)
     keyframes_[static_cast<std::size_t>(window_[static_cast<std::size_t>(w)])].exposure = state.exposure[static_cast<std::size_t>(w)] * e_scale;
   {

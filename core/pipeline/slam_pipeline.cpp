@@ -89,6 +89,8 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
     options_.odometry.brightness_exponent = options_.raw_frame_exponent;
   }
   if (given_calibration) hold_given_calibration(configured_beam_exponent);
+  else if (options_.estimate_beam && runs_calibration(options_.mode))
+    throw std::invalid_argument("calibration.estimate_beam needs a lens vignette given (calibration.given with given_holds: vignette)");
   if (runs_calibration(options_.mode))
     calibration_ = std::make_unique<OnlinePhotometricCalibration>(options_.calibration);
   if (options_.mode == PipelineMode::Quality) {
@@ -122,6 +124,8 @@ SlamPipeline::~SlamPipeline() = default;
 
 void SlamPipeline::hold_given_calibration(double beam_exponent) {
   const GivenCalibrationParts parts = options_.given_calibration_holds;
+  if (options_.estimate_beam && parts != GivenCalibrationParts::Vignette)
+    throw std::invalid_argument("calibration.estimate_beam needs the lens vignette held alone (calibration.given_holds: vignette)");
   const GivenPhotometricCalibration given = read_given_calibration(
       options_.given_calibration_folder, camera_ ? camera_->width() : 0, camera_ ? camera_->height() : 0, parts);
   PhotometricBackendOptions& backend = options_.calibration.backend;
@@ -141,7 +145,16 @@ void SlamPipeline::hold_given_calibration(double beam_exponent) {
       backend.initial_vignette = given.vignette;
       backend.estimate_vignette = false;
       options_.calibration.given_part = "lens vignette given: " + given.vignette_description;
-      if (beam_exponent > 0.0 && camera_) {
+      if (options_.estimate_beam) {
+        if (!camera_)
+          throw std::invalid_argument("calibration.estimate_beam: the beam's angles need the camera's calibration");
+        constexpr double kBeamStart = 2.0;  // cos(45 deg)^2 = 1/2
+        backend.beam_halo = beam_halo_for_camera(*camera_, given.vignette, beam_exponent > 0.0 ? beam_exponent : kBeamStart);
+        backend.initial_vignette.v = backend.beam_halo->vignette(backend.beam_halo->initial_exponent());
+        backend.estimate_vignette = true;
+        options_.calibration.given_part += fmt::format(" times the lamp's beam cos(alpha)^m, m estimated (from {:.2f})",
+                                                       backend.beam_halo->initial_exponent());
+      } else if (beam_exponent > 0.0 && camera_) {
         // The lamp lights what the camera sees through its beam: the halo the frames show.
         const VignetteFit halo = fit_vignette_to_image(
             halo_with_beam(given.vignette.render(camera_->width(), camera_->height()), *camera_, beam_exponent));
@@ -370,7 +383,12 @@ std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
                         options_.apply_estimated_light_offset ? ", in use" : ", not applied")
           : "lamp offset: " + e.reason;
     }
-    if (!lens_vignette_.empty()) {
+    if (estimate->beam_exponent) {
+      const double m = *estimate->beam_exponent;
+      view->lamp_beam = m > 0.0 ? fmt::format("lamp beam cos^{:.2f} (half angle {:.1f} deg), estimated over the given lens vignette",
+                                              m, std::acos(std::pow(0.5, 1.0 / m)) * 180.0 / M_PI)
+                                : fmt::format("lamp beam cos^{:.2f}: not darker off the axis", m);
+    } else if (!lens_vignette_.empty()) {
       if (estimate->model_version != beam_fit_version_) fit_beam(*estimate);
       if (beam_fit_)
         view->lamp_beam = beam_fit_->ok ? fmt::format("lamp beam cos^{:.2f} (half angle {:.1f} deg) = halo / lens vignette",

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "nirslam/photometric/beam_from_halo.hpp"
+#include "nirslam/photometric/beam_halo.hpp"
 #include "nirslam/photometric/given_calibration.hpp"
 #include "nirslam/photometric/response_model.hpp"
 #include "nirslam/sim/simulator.hpp"
@@ -74,6 +75,27 @@ TEST(BeamFromHalo, HaloOfALensVignetteUnderABeam) {
   for (int i = 0; i <= 10; ++i)
     EXPECT_NEAR(fitted.vignette(i / 10.0), sim.halo_factor()(i / 10.0), i < 10 ? 0.01 : 0.02) << "r " << i / 10.0;
   EXPECT_THROW(halo_with_beam(VignetteModel{}.render(320, 240), camera, m), std::invalid_argument);
+}
+
+TEST(BeamHalo, IsTheSimulatorsHaloFactorWithItsDerivative) {
+  SimulatorOptions o;
+  const Simulator sim(o);
+  const double m = sim.lighting(50.0).illuminator.beam_exponent();
+  const BeamHalo beam = beam_halo_for_camera(*sim.camera(), o.vignette, 3.0);
+  EXPECT_DOUBLE_EQ(beam.initial_exponent(), 3.0);
+  // The same construction as Simulator::halo_factor() (the diagonal, V(0) = 1, least squares).
+  EXPECT_LT((beam.vignette(m) - sim.halo_factor().v).norm(), 1e-6) << beam.vignette(m).transpose();
+  // Without a beam: the lens vignette itself, which the polynomial holds exactly.
+  EXPECT_LT((beam.vignette(0.0) - o.vignette.v).norm(), 1e-9);
+  for (const double at : {0.5, 2.0, 4.82, 9.0}) {
+    Eigen::Vector3d analytic;
+    beam.vignette(at, &analytic);
+    const double h = 1e-6;
+    const Eigen::Vector3d numeric = (beam.vignette(at + h) - beam.vignette(at - h)) / (2.0 * h);
+    EXPECT_LT((analytic - numeric).norm(), 1e-6 * (1.0 + numeric.norm())) << "m " << at;
+  }
+  EXPECT_THROW(BeamHalo(o.vignette, {0.1, 0.2}, {0.9, 0.8}, 2.0), std::invalid_argument);
+  EXPECT_THROW(BeamHalo(o.vignette, {0.1, 0.2, 0.3, 0.4}, {0.9, 0.8, 0.0, 0.7}, 2.0), std::invalid_argument);
 }
 
 TEST(BeamFromHalo, NoBeamOrNoAngleSaysWhy) {

@@ -15,6 +15,7 @@
 #include <opencv2/core.hpp>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/photometric/beam_halo.hpp"
 #include "nirslam/photometric/given_calibration.hpp"
 #include "nirslam/pipeline/slam_pipeline.hpp"
 
@@ -233,6 +234,51 @@ TEST(GivenCalibration, PipelineHoldsAGivenPartAndEstimatesTheRest) {
     EXPECT_NE(estimate->ambiguity_detail.find("lens vignette given"), std::string::npos) << estimate->ambiguity_detail;
     EXPECT_LT((estimate->vignette.v - vignette.v).norm(), 2e-3);
   }
+  fs::remove_all(folder);
+}
+
+TEST(GivenCalibration, PipelineEstimatesTheBeamOverTheGivenLensVignette) {
+  const VignetteModel lens{Eigen::Vector3d(-0.25, 0.0, 0.0)};
+  const fs::path folder = write_dso_files("pipeline_beam", ResponseModel::from_preset(ResponsePreset::Gamma), lens);
+  const double f = 80.0 / std::tan(37.5 * M_PI / 180.0);
+  const auto camera = std::make_shared<PinholeCamera>(kVignetteWidth, kVignetteHeight,
+                                                      Eigen::Vector4d(f, f, 0.5 * (kVignetteWidth - 1), 0.5 * (kVignetteHeight - 1)));
+  PipelineOptions options = calibrated_with_files(folder);
+  options.mode = PipelineMode::Illuminated;
+  options.given_calibration_holds = GivenCalibrationParts::Vignette;
+  options.estimate_beam = true;
+  {
+    SlamPipeline pipeline(options, camera);
+    const auto estimate = pipeline.calibration()->estimate();
+    ASSERT_TRUE(estimate->beam_exponent);
+    EXPECT_DOUBLE_EQ(*estimate->beam_exponent, 2.0) << "no beam configured: a 45-degree start";
+    // The halo the frames are corrected with at the start: the lens vignette times cos(alpha)^2.
+    const BeamHalo beam = beam_halo_for_camera(*camera, lens, 2.0);
+    EXPECT_LT((estimate->vignette.v - beam.vignette(2.0)).norm(), 2e-3);
+    const auto view = pipeline.photometric_view();
+    EXPECT_NE(view->lamp_beam.find("cos^2.00"), std::string::npos) << view->lamp_beam;
+    EXPECT_NE(view->lamp_beam.find("estimated over the given lens vignette"), std::string::npos) << view->lamp_beam;
+    EXPECT_NE(view->ambiguity.find("m estimated"), std::string::npos) << view->ambiguity;
+  }
+  options.odometry.beam_exponent = 4.82;  // the data sheet's, as the start
+  EXPECT_DOUBLE_EQ(*SlamPipeline(options, camera).calibration()->estimate()->beam_exponent, 4.82);
+
+  // What it needs, named.
+  const auto construction_error = [&](const PipelineOptions& o, std::shared_ptr<const CameraModel> cam) -> std::string {
+    try {
+      SlamPipeline pipeline(o, std::move(cam));
+    } catch (const std::exception& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_NE(construction_error(options, nullptr).find("camera"), std::string::npos);
+  PipelineOptions both = options;
+  both.given_calibration_holds = GivenCalibrationParts::Both;
+  EXPECT_NE(construction_error(both, camera).find("given_holds: vignette"), std::string::npos);
+  PipelineOptions online = options;
+  online.given_calibration_folder.clear();
+  EXPECT_NE(construction_error(online, camera).find("calibration.given"), std::string::npos);
   fs::remove_all(folder);
 }
 

@@ -118,6 +118,10 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   const PipelineConfig lens_only = load_pipeline_config(
       write_pipeline_yaml("given_vignette", "calibration:\n  given: nirslam_given_calibration\n  given_holds: vignette\n"));
   EXPECT_EQ(lens_only.worker.pipeline.given_calibration_holds, GivenCalibrationParts::Vignette);
+  EXPECT_FALSE(lens_only.worker.pipeline.estimate_beam);
+  const PipelineConfig beam = load_pipeline_config(write_pipeline_yaml(
+      "given_beam", "calibration:\n  given: nirslam_given_calibration\n  given_holds: vignette\n  estimate_beam: true\n"));
+  EXPECT_TRUE(beam.worker.pipeline.estimate_beam);
   const std::string bad_part = pipeline_config_error(write_pipeline_yaml("given_lens", "calibration:\n  given_holds: lens\n"));
   EXPECT_NE(bad_part.find("calibration.given_holds"), std::string::npos) << bad_part;
   EXPECT_NE(bad_part.find("'lens'"), std::string::npos) << bad_part;

@@ -105,6 +105,7 @@
 
 #include <Eigen/Core>
 
+#include "nirslam/photometric/beam_halo.hpp"
 #include "nirslam/photometric/keyframe_selection.hpp"
 #include "nirslam/photometric/response_model.hpp"
 
@@ -268,6 +269,10 @@ struct PhotometricBackendOptions {
   // (README "Photometric calibration accuracy", co-lit table).
   VignetteSteps vignette_steps = VignetteSteps::Bisected;
   VignetteSteps lit_vignette_steps = VignetteSteps::Monotone;
+  // The halo factor as a known lens vignette times the lamp's beam cos(alpha)^m (beam_halo.hpp):
+  // when set, the vignette's only unknown is m (starting from its initial exponent), in place of
+  // v1..v3 and of the steps above; initial_vignette should be its v at that start.
+  std::optional<BeamHalo> beam_halo;
   double convergence_relative = 1e-6; // stop when the cost drops by less than this fraction
   double monotonic_margin = 0.01;     // f'(u) below this (at 256 points) is penalised ...
   double monotonic_penalty_weight = 100.0;  // ... with this weight per observation
@@ -311,6 +316,8 @@ public:
 
   const ResponseModel& response() const { return response_; }
   const VignetteModel& vignette() const { return vignette_; }
+  // The beam's exponent m of the halo factor (options.beam_halo); 0 without one.
+  double beam_exponent() const { return beam_exponent_; }
   // Current exposure of each stored keyframe (frame index -> exposure).
   std::vector<std::pair<std::int64_t, double>> keyframe_exposures() const;
   std::size_t stored_keyframes() const { return keyframes_.size(); }
@@ -340,7 +347,7 @@ private:
   struct State {
     Eigen::Vector4d c = Eigen::Vector4d::Zero();
     Eigen::Vector3d v = Eigen::Vector3d::Zero();
-    Eigen::Vector3d q = Eigen::Vector3d::Zero();  // v = vignette_from_monotone(q) with monotone steps
+    Eigen::Vector3d q = Eigen::Vector3d::Zero();  // v = vignette_from_monotone(q) with monotone steps; (m, 0, 0) with beam steps
     std::vector<double> exposure;  // window keyframes, divided by the median
     std::vector<double> radiance;  // per point
     std::vector<double> u;         // per observation, for c
@@ -378,6 +385,7 @@ private:
   // variances in bins of dI/d log X); false when the fit is not determined.
   bool estimate_model_noise(const State& state, double& sigma_log, double& noise_grey) const;
   int updates_since_multi_start_ = 0;
+  double beam_exponent_ = 0.0;  // with options_.beam_halo: the current m
   bool response_fitted_ = false;  // f was estimated at least once
 };
 

@@ -116,6 +116,11 @@ struct PipelineOptions {
   // fitted to the vignette model, and the odometry's beam term goes off too (the corrected frames
   // no longer show the beam).
   GivenCalibrationParts given_calibration_holds = GivenCalibrationParts::Both;
+  // With the lens vignette held (given_holds: vignette): the lamp's beam exponent m is estimated
+  // online instead of taken from odometry.beam_exponent, the halo factor being the lens vignette
+  // times cos(alpha)^m with m its only unknown (beam_halo.hpp). It starts from the configured
+  // exponent, or from 2 (a 45-degree half-power half angle) when none is configured.
+  bool estimate_beam = false;
   bool light_offset_configured = false;
   bool estimate_light_offset = true;
   bool apply_estimated_light_offset = false;

@@ -153,6 +153,12 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (std::getenv("NIRSLAM_PHOTOMETRIC_BACKEND_FOLLOW") != nullptr) options.keyframes_follow_deformation = true;
   // The neighbourhood the deformation is fitted over (track_deformation.hpp, 60 px by default).
   if (const char* r = std::getenv("NIRSLAM_PHOTOMETRIC_NEIGHBOUR_RADIUS")) options.tracker.deformation.neighbour_radius_px = std::atof(r);
+  // The halo factor as the true lens vignette times the beam, the beam's exponent the only
+  // vignette unknown (beam_halo.hpp), from this start.
+  if (const char* start = std::getenv("NIRSLAM_PHOTOMETRIC_BEAM_HALO")) {
+    options.backend.beam_halo = beam_halo_for_camera(*Simulator(sim_options).camera(), sim_options.vignette, std::atof(start));
+    options.backend.initial_vignette.v = options.backend.beam_halo->vignette(std::atof(start));
+  }
   if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
     options.backend.initial_response = sim_options.response;
     options.backend.initial_vignette = sim_options.vignette;
@@ -269,6 +275,7 @@ void print(const char* label, const AccuracyRun& r) {
   std::printf("%-16s observed range modulo the irradiance scale (s = %.3f): %5.2f / %6.2f gl; exposure pass: %d frames "
               "restarted, %d kept\n", label, r.irradiance_scale, r.scale_free_mean_grey, r.scale_free_max_grey,
               r.restarted_frames, r.kept_frames);
+  if (r.estimate->beam_exponent) std::printf("%-16s beam exponent m %.3f\n", label, *r.estimate->beam_exponent);
   if (r.estimate->ambiguity == AmbiguityResolution::Normalisation)
     std::printf("%-16s response modulo gamma %5.2f / %6.2f gl (%s)\n", label, r.gamma_free_mean_grey,
                 r.gamma_free_max_grey, r.estimate->ambiguity_detail.c_str());

@@ -158,6 +158,8 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* start = std::getenv("NIRSLAM_PHOTOMETRIC_BEAM_HALO")) {
     options.backend.beam_halo = beam_halo_for_camera(*Simulator(sim_options).camera(), sim_options.vignette, std::atof(start));
     options.backend.initial_vignette.v = options.backend.beam_halo->vignette(std::atof(start));
+    std::printf("beam halo from m = %s; the simulator's m %.3f\n", start,
+                Simulator(sim_options).lighting(sim_options.powers_w.front()).illuminator.beam_exponent());
   }
   if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
     options.backend.initial_response = sim_options.response;

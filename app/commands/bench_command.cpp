@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
@@ -51,6 +52,8 @@ struct BenchOptions {
   fs::path out_dir = "nirslam-bench";
   bool no_simulated = false;
   bool dataset_calibration = false;  // each sequence's own pcalib.txt / vignette.png, held
+  fs::path given_calibration;        // or one folder for every sequence (the rig's, e.g. lamp off)
+  std::vector<std::string> given_calibration_modes;  // empty: every mode that runs the calibration
 };
 
 struct BenchSequence {
@@ -213,6 +216,27 @@ double fps_of(const fs::path& run_dir) {
   }
 }
 
+// bench.md's first line when a calibration is given: which files, which part held, in which modes.
+std::string given_calibration_header(const BenchOptions& o, const std::vector<std::string>& given_modes) {
+  if (!o.dataset_calibration && o.given_calibration.empty()) return {};
+  const std::string files = o.dataset_calibration ? "each sequence's own pcalib.txt and vignette.png"
+                                                  : "the pcalib.txt and vignette.png of " + o.given_calibration.string();
+  const GivenCalibrationParts held = app_config().worker.pipeline.given_calibration_holds;
+  const std::string part = held == GivenCalibrationParts::Both ? std::string("both held, nothing estimated online")
+                           : held == GivenCalibrationParts::Response
+                               ? std::string("the response (pcalib.txt) held, the halo factor estimated online")
+                               : fmt::format("the lens vignette (vignette.png) held, the lamp's beam (exponent {}{}) {}, "
+                                             "the response estimated online",
+                                             app_config().worker.pipeline.odometry.beam_exponent,
+                                             app_config().worker.pipeline.estimate_beam ? ", refined online" : ", configured",
+                                             app_config().worker.pipeline.beam_in_odometry
+                                                 ? "in the odometry's lamp factor"
+                                                 : "in the halo factor the frames are corrected with");
+  return fmt::format("Photometric calibration given (run --photometric-calibration) in mode{} {}: {}; {} "
+                     "(calibration.given_holds: {}). Other modes estimate it online.\n\n",
+                     given_modes.size() == 1 ? "" : "s", fmt::join(given_modes, ", "), files, part, to_string(held));
+}
+
 int run_bench(const BenchOptions& o) {
   std::vector<std::string> modes = o.modes;
   if (modes.empty())
@@ -221,6 +245,26 @@ int run_bench(const BenchOptions& o) {
     if (!parse_pipeline_mode(m) || *parse_pipeline_mode(m) == PipelineMode::Quality)
       throw std::invalid_argument("--modes: '" + m +
                                   "' is not an odometry mode (odometry, calibrated, illuminated, odometry-illuminated)");
+  if (o.dataset_calibration && !o.given_calibration.empty())
+    throw std::invalid_argument("--dataset-calibration and --photometric-calibration: give one of the two");
+  if (!o.given_calibration.empty() && !fs::is_directory(o.given_calibration))
+    throw InputError(o.given_calibration, "--photometric-calibration: not a folder (one holding pcalib.txt and vignette.png)");
+  const bool holds_given = o.dataset_calibration || !o.given_calibration.empty();
+  std::vector<std::string> given_modes = o.given_calibration_modes;
+  if (!holds_given && !given_modes.empty())
+    throw std::invalid_argument("--given-calibration-modes: needs --dataset-calibration or --photometric-calibration");
+  if (given_modes.empty())
+    for (const std::string& m : modes)
+      if (runs_calibration(*parse_pipeline_mode(m))) given_modes.push_back(m);
+  for (const std::string& m : given_modes) {
+    const auto mode = parse_pipeline_mode(m);
+    if (!mode || !runs_calibration(*mode) || std::find(modes.begin(), modes.end(), m) == modes.end())
+      throw std::invalid_argument("--given-calibration-modes: '" + m +
+                                  "' is not one of the --modes that run the photometric calibration");
+  }
+  const auto holds_given_in = [&](const std::string& mode) {
+    return holds_given && std::find(given_modes.begin(), given_modes.end(), mode) != given_modes.end();
+  };
   fs::create_directories(o.out_dir);
 
   std::vector<BenchSequence> sequences;
@@ -246,8 +290,11 @@ int run_bench(const BenchOptions& o) {
       std::vector<std::string> arguments;
       if (!app_config_file().empty()) arguments = {"--config", app_config_file().string()};  // the runs use bench's own
       arguments.insert(arguments.end(), {"run", sequence.folder.string(), "--mode", mode, "--out", run_dir.string()});
-      if (o.dataset_calibration && runs_calibration(*parse_pipeline_mode(mode)))
-        arguments.insert(arguments.end(), {"--photometric-calibration", sequence.folder.string()});
+      if (holds_given_in(mode))
+        arguments.insert(arguments.end(), {"--photometric-calibration",
+                                           (o.dataset_calibration ? sequence.folder : o.given_calibration).string()});
+      else if (holds_given && runs_calibration(*parse_pipeline_mode(mode)))
+        arguments.emplace_back("--online-calibration");
       const ChildResult child = run_child(arguments, run_dir / "run.log");
       BenchmarkRun run;
       run.sequence = sequence.name;
@@ -272,18 +319,7 @@ int run_bench(const BenchOptions& o) {
     }
   }
 
-  const std::string markdown =
-      (!o.dataset_calibration ? std::string()
-       : app_config().worker.pipeline.given_calibration_holds == GivenCalibrationParts::Both
-           ? std::string("Photometric calibration in the calibrated modes: given, each sequence's own pcalib.txt and "
-                         "vignette.png (run --photometric-calibration), not estimated online.\n\n")
-           : fmt::format("Photometric calibration in the calibrated modes: each sequence's own {} held (run "
-                         "--photometric-calibration, calibration.given_holds: {}), the rest estimated online.\n\n",
-                         app_config().worker.pipeline.given_calibration_holds == GivenCalibrationParts::Response
-                             ? "response (pcalib.txt)"
-                             : "lens vignette (vignette.png, times the configured beam)",
-                         to_string(app_config().worker.pipeline.given_calibration_holds))) +
-      benchmark_markdown(table);
+  const std::string markdown = given_calibration_header(o, given_modes) + benchmark_markdown(table);
   {
     std::ofstream md(o.out_dir / "bench.md", std::ios::trunc);
     md << markdown;
@@ -314,6 +350,13 @@ void add_bench_command(CLI::App& parent, CommandAction& action) {
                 "The calibrated modes hold each sequence's own pcalib.txt and vignette.png (a TUM monoVO folder's; "
                 "simulated sequences carry the true ones) instead of estimating them online; the config's "
                 "calibration.given_holds may hold one of the two and estimate the other");
+  cmd->add_option("--photometric-calibration", options->given_calibration,
+                  "One calibration folder (pcalib.txt, vignette.png; e.g. `calibrate` of a lamp-off sequence of the same "
+                  "camera) held in the calibrated modes of every sequence, as calibration.given_holds says");
+  cmd->add_option("--given-calibration-modes", options->given_calibration_modes,
+                  "Which modes hold the given calibration (default: every mode that runs the calibration); the others "
+                  "estimate it online")
+      ->delimiter(',');
   cmd->add_option("-o,--out", options->out_dir, "Output folder (sequences are cached in OUT/sequences)")->capture_default_str();
   cmd->callback([options, &action] { action = [options] { return run_bench(*options); }; });
 }

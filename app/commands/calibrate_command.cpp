@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include "commands/app_config.hpp"
 #include "commands/source_argument.hpp"
 #include "commands/subcommand.hpp"
 #include "nirslam/common/error.hpp"
@@ -84,7 +85,9 @@ int run_calibrate(const CalibrateOptions& options) {
   const bool collect_truth = truth.has_value() && truth->exposures.empty();
 
   const auto started = std::chrono::steady_clock::now();
-  OnlineCalibrationOptions calibration_options;
+  // The config's calibration section (--config), as `run` uses it: e.g. background_thread: false
+  // makes the batch repeatable to the bit.
+  OnlineCalibrationOptions calibration_options = app_config().worker.pipeline.calibration;
   calibration_options.correct_images = false;  // batch: only the model and the exposures are wanted
   calibration_options.use_reported_exposures = !options.ignore_reported_exposures;
   std::unique_ptr<Source> source = factory();

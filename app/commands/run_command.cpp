@@ -34,6 +34,7 @@ struct RunOptions {
   std::int64_t max_frames = 0;
   double progress_interval_s = 1.0;
   std::filesystem::path given_calibration;  // empty: the configured one (calibration.given), else online
+  bool online_calibration = false;          // leave out the configured given calibration
 };
 
 double peak_memory_mib() {
@@ -162,6 +163,14 @@ int run_headless(const RunOptions& options) {
           "--mode: expected quality, odometry, calibrated, illuminated or odometry-illuminated, got '" + options.mode + "'");
     worker_options.pipeline.mode = *mode;
   }
+  if (options.online_calibration && !options.given_calibration.empty())
+    throw std::invalid_argument("--online-calibration and --photometric-calibration: give one of the two");
+  if (options.online_calibration) {
+    worker_options.pipeline.given_calibration_folder.clear();
+    worker_options.pipeline.given_calibration_holds = GivenCalibrationParts::Both;
+    worker_options.pipeline.estimate_beam = false;
+    worker_options.pipeline.beam_in_odometry = false;
+  }
   if (!options.given_calibration.empty()) {
     if (!std::filesystem::is_directory(options.given_calibration))
       throw InputError(options.given_calibration, "--photometric-calibration: not a folder (one holding pcalib.txt and vignette.png)");
@@ -273,6 +282,9 @@ void add_run_command(CLI::App& parent, CommandAction& action) {
   cmd->add_option("--photometric-calibration", options->given_calibration,
                   "Folder with DSO's pcalib.txt (and vignette.png), e.g. a TUM monoVO dataset or `nirslam calibrate`'s "
                   "output: the modes with calibration hold it instead of estimating it online (config: calibration.given)");
+  cmd->add_flag("--online-calibration", options->online_calibration,
+                "Estimate the whole photometric calibration online: leave out the config's calibration.given, "
+                "given_holds and estimate_beam (bench's modes outside --given-calibration-modes)");
   cmd->callback([options, &action] { action = [options] { return run_headless(*options); }; });
 }
 

@@ -726,6 +726,15 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
     throw std::invalid_argument("OdometryFrame.exposure: must be positive");
   if (frame.illuminator_power_w && !(*frame.illuminator_power_w >= 0.0))
     throw std::invalid_argument("OdometryFrame.illuminator_power_w: must not be negative");
+  if (frame.beam_exponent) {
+    if (!std::isfinite(*frame.beam_exponent))
+      throw std::invalid_argument("OdometryFrame.beam_exponent: must be finite");
+    if (*frame.beam_exponent != impl_->options.beam_exponent) {
+      impl_->options.beam_exponent = options_.beam_exponent = *frame.beam_exponent;
+      if (impl_->window) impl_->window->set_lamp(impl_->lamp());
+      if (impl_->tracker) impl_->tracker->set_lamp(impl_->lamp());
+    }
+  }
   // The brightness factor of the frame: its exposure and, with the lamp's correction, the lamp's
   // power (the only light: irradiance scales with it). A lamp that is off or says nothing
   // counts as 1, so the affine brightness absorbs what changed.

@@ -159,9 +159,10 @@ std::int64_t OnlinePhotometricCalibration::keyframes_dropped() const {
 }
 
 void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& model) {
+  const VignetteModel& vignette = options_.correction_vignette ? *options_.correction_vignette : model.vignette;
   const bool first = correction_version_ < 0;
   if (!first && correction_response_.coefficients() == model.response.coefficients() &&
-      correction_vignette_.v == model.vignette.v)
+      correction_vignette_.v == vignette.v)
     return;  // caught up: nothing to measure
   double largest = 0.0;
   if (!first && options_.max_correction_step_log > 0.0) {
@@ -174,7 +175,7 @@ void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& mo
       if (now > 0.0 && target > 0.0) largest = std::max(largest, std::abs(std::log(target / now)));
     }
     for (double r = 0.0; r <= 1.0; r += 1.0 / 32.0) {
-      const double now = correction_vignette_(r), target = model.vignette(r);
+      const double now = correction_vignette_(r), target = vignette(r);
       if (now > 0.0 && target > 0.0) largest = std::max(largest, std::abs(std::log(target / now)));
     }
   }
@@ -185,11 +186,11 @@ void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& mo
                        : options_.max_correction_step_log / largest;
   if (t == 1.0) {
     correction_response_ = model.response;
-    correction_vignette_ = model.vignette;
+    correction_vignette_ = vignette;
   } else {
     correction_response_ = ResponseModel(correction_response_.coefficients() +
                                          t * (model.response.coefficients() - correction_response_.coefficients()));
-    correction_vignette_.v += t * (model.vignette.v - correction_vignette_.v);
+    correction_vignette_.v += t * (vignette.v - correction_vignette_.v);
   }
   const std::vector<double> table = correction_response_.inverse_table(256);
   for (int i = 0; i < 256; ++i) inverse_lut_[static_cast<std::size_t>(i)] = static_cast<float>(table[static_cast<std::size_t>(i)]);

@@ -82,12 +82,16 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
   const double configured_beam_exponent = options_.odometry.beam_exponent;
   if (runs_calibration(options_.mode)) {
     // An estimated halo factor holds the beam; a given lens vignette held alone does not.
-    if (!given_calibration || options_.given_calibration_holds != GivenCalibrationParts::Both)
+    if (!given_calibration || (options_.given_calibration_holds != GivenCalibrationParts::Both &&
+                               !(options_.beam_in_odometry && options_.mode == PipelineMode::Illuminated)))
       options_.odometry.beam_exponent = 0.0;
     options_.odometry.brightness_exponent = options_.corrected_frame_exponent;
   } else {
     options_.odometry.brightness_exponent = options_.raw_frame_exponent;
   }
+  if (options_.beam_in_odometry && runs_calibration(options_.mode) &&
+      (!given_calibration || options_.given_calibration_holds != GivenCalibrationParts::Vignette))
+    throw std::invalid_argument("calibration.beam_in_odometry needs the lens vignette held alone (calibration.given with given_holds: vignette)");
   if (given_calibration) hold_given_calibration(configured_beam_exponent);
   else if (options_.estimate_beam && runs_calibration(options_.mode))
     throw std::invalid_argument("calibration.estimate_beam needs a lens vignette given (calibration.given with given_holds: vignette)");
@@ -166,6 +170,11 @@ void SlamPipeline::hold_given_calibration(double beam_exponent) {
         backend.initial_vignette = halo.vignette;
         options_.calibration.given_part +=
             fmt::format(" times the lamp's beam cos(alpha)^{:.2f} (fitted to {:.4f} rms)", beam_exponent, halo.rms);
+      }
+      // Only the illuminated mode's odometry has the lamp factor that can carry the beam.
+      if (options_.beam_in_odometry && options_.mode == PipelineMode::Illuminated) {
+        options_.calibration.correction_vignette = given.vignette;
+        options_.calibration.given_part += "; the frames corrected with the lens vignette alone, the odometry's lamp factor carries the beam";
       }
       break;
     }
@@ -263,6 +272,9 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     else if (result.photometric)
       input.exposure = result.photometric->exposure;
     input.illuminator_power_w = frame.illuminator_power_w;
+    if (options_.calibration.correction_vignette && calibration_)
+      if (const auto estimate = calibration_->estimate(); estimate && estimate->beam_exponent)
+        input.beam_exponent = *estimate->beam_exponent;
     result.timings.undistort_ms = ms_since(start);
     OdometryResult odometry = odometry_->process(input);
     // The initialiser's hand-over, with the wall time of its phases (README, "Speed").

@@ -53,7 +53,55 @@ TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
   EXPECT_TRUE(names_calibration) << "the run's summary names the given calibration";
   const auto given_md = lines_of(out / "bench.md");
   ASSERT_FALSE(given_md.empty());
-  EXPECT_EQ(given_md[0].rfind("Photometric calibration in the calibrated modes: given", 0), 0u) << given_md[0];
+  EXPECT_EQ(given_md[0].rfind("Photometric calibration given (run --photometric-calibration) in mode calibrated: each "
+                              "sequence's own pcalib.txt and vignette.png; both held",
+                              0),
+            0u)
+      << given_md[0];
+
+  // One folder for every sequence, held by the lamp mode only (issue 8's lens vignette from an
+  // earlier calibration, the beam refined online); the calibrated mode estimates everything
+  // online, though the config's estimate_beam would refuse to run without a given lens vignette.
+  const fs::path lens_config = fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-lens-vignette-beam-refined.yaml";
+  const fs::path rig = out / "sequences" / "Room_50_40f_320x240";
+  ASSERT_TRUE(fs::exists(rig / "vignette.png"));
+  const CommandResult lamp = run_command(nirslam("--config '" + lens_config.string() +
+                                                 "' bench --scenes room --powers 50 --frames 40 --size 320x240 --modes "
+                                                 "calibrated,illuminated --photometric-calibration '" + rig.string() +
+                                                 "' --given-calibration-modes illuminated --out '" + out.string() + "'"));
+  ASSERT_EQ(lamp.exit_code, 0) << lamp.output;
+  const auto summary_text = [&](const char* mode) {
+    std::string text;
+    for (const std::string& line : lines_of(out / "runs/Room_50" / mode / "summary.json")) text += line;
+    return text;
+  };
+  EXPECT_NE(summary_text("illuminated").find("\"held\": \"vignette\""), std::string::npos) << summary_text("illuminated");
+  EXPECT_NE(summary_text("calibrated").find("\"photometric_calibration\": \"online\""), std::string::npos)
+      << summary_text("calibrated");
+  const auto lamp_md = lines_of(out / "bench.md");
+  ASSERT_FALSE(lamp_md.empty());
+  EXPECT_EQ(lamp_md[0].rfind("Photometric calibration given (run --photometric-calibration) in mode illuminated: the "
+                             "pcalib.txt and vignette.png of " + rig.string() + "; the lens vignette (vignette.png) held, "
+                             "the lamp's beam (exponent 4.82, refined online) in the odometry's lamp factor",
+                             0),
+            0u)
+      << lamp_md[0];
+}
+
+TEST(BenchCommand, AGivenCalibrationsModesAndFolderAreChecked) {
+  const fs::path out = fresh_dir("bench_given_bad");
+  const CommandResult plain = run_command(nirslam("bench --no-simulated demo --modes odometry,calibrated --photometric-calibration '" +
+                                                  out.string() + "' --given-calibration-modes odometry --out '" + out.string() + "'"));
+  EXPECT_NE(plain.exit_code, 0);
+  EXPECT_NE(plain.output.find("--given-calibration-modes: 'odometry'"), std::string::npos) << plain.output;
+  const CommandResult missing = run_command(nirslam("bench --no-simulated demo --photometric-calibration /no/such/calibration --out '" +
+                                                    out.string() + "'"));
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.output.find("/no/such/calibration"), std::string::npos) << missing.output;
+  const CommandResult both = run_command(nirslam("bench --no-simulated demo --dataset-calibration --photometric-calibration '" +
+                                                 out.string() + "' --out '" + out.string() + "'"));
+  EXPECT_NE(both.exit_code, 0);
+  EXPECT_NE(both.output.find("give one of the two"), std::string::npos) << both.output;
 }
 
 TEST(BenchCommand, QualityIsNotAnOdometryMode) {

@@ -282,6 +282,59 @@ TEST(GivenCalibration, PipelineEstimatesTheBeamOverTheGivenLensVignette) {
   fs::remove_all(folder);
 }
 
+TEST(GivenCalibration, PipelineLeavesTheBeamToTheOdometry) {
+  const VignetteModel lens{Eigen::Vector3d(-0.25, 0.0, 0.0)};
+  const fs::path folder = write_dso_files("pipeline_beam_odometry", ResponseModel::from_preset(ResponsePreset::Gamma), lens);
+  const double f = 80.0 / std::tan(37.5 * M_PI / 180.0);
+  const auto camera = std::make_shared<PinholeCamera>(kVignetteWidth, kVignetteHeight,
+                                                      Eigen::Vector4d(f, f, 0.5 * (kVignetteWidth - 1), 0.5 * (kVignetteHeight - 1)));
+  PipelineOptions options = calibrated_with_files(folder);
+  options.mode = PipelineMode::Illuminated;
+  options.given_calibration_holds = GivenCalibrationParts::Vignette;
+  options.estimate_beam = true;
+  options.odometry.beam_exponent = 4.82;
+  // A uniform grey frame: corrected, its corner over its centre is 1 / V there.
+  Frame frame;
+  frame.image = cv::Mat(kVignetteHeight, kVignetteWidth, CV_8UC1, cv::Scalar(128));
+  frame.exposure_ms = 10.0;
+  const double r_corner = VignetteModel::radius(0, 0, kVignetteWidth, kVignetteHeight);
+  const auto corner_over_centre = [&](const PipelineFrameResult& result) {
+    return result.corrected.at<float>(0, 0) / result.corrected.at<float>(kVignetteHeight / 2, kVignetteWidth / 2);
+  };
+  for (const bool in_odometry : {false, true}) {
+    options.beam_in_odometry = in_odometry;
+    SlamPipeline pipeline(options, camera);
+    ASSERT_NE(pipeline.odometry(), nullptr);
+    const PipelineFrameResult result = pipeline.process(frame);
+    ASSERT_FALSE(result.corrected.empty());
+    const double halo_corner = VignetteModel{pipeline.calibration()->estimate()->vignette}(r_corner);
+    if (in_odometry) {
+      // The frames divided by the lens vignette alone; the odometry's lamp factor has the beam,
+      // at the back end's current m (the start, 4.82, before any keyframe).
+      EXPECT_NEAR(corner_over_centre(result), 1.0 / lens(r_corner), 0.02 / lens(r_corner));
+      EXPECT_DOUBLE_EQ(pipeline.odometry()->options().beam_exponent, 4.82);
+      EXPECT_NE(pipeline.calibration()->estimate()->ambiguity_detail.find("the odometry's lamp factor carries the beam"),
+                std::string::npos)
+          << pipeline.calibration()->estimate()->ambiguity_detail;
+    } else {
+      EXPECT_NEAR(corner_over_centre(result), 1.0 / halo_corner, 0.02 / halo_corner) << "the whole halo factor";
+      EXPECT_LT(halo_corner, 0.8 * lens(r_corner)) << "the beam darkens the corner";
+      EXPECT_DOUBLE_EQ(pipeline.odometry()->options().beam_exponent, 0.0) << "the frames no longer show the beam";
+    }
+  }
+  // Only a held lens vignette leaves a beam to carry.
+  PipelineOptions both = options;
+  both.given_calibration_holds = GivenCalibrationParts::Both;
+  both.estimate_beam = false;
+  try {
+    SlamPipeline pipeline(both, camera);
+    ADD_FAILURE() << "beam_in_odometry with the whole calibration held";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("calibration.beam_in_odometry"), std::string::npos) << e.what();
+  }
+  fs::remove_all(folder);
+}
+
 TEST(GivenCalibration, PipelineHoldsTheGivenModel) {
   const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Filmic);
   const VignetteModel vignette{Eigen::Vector3d(-0.25, 0.0, 0.0)};

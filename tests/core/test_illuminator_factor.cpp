@@ -32,7 +32,9 @@ const Case kCases[] = {{Eigen::Vector3d::Zero(), 0.0, false},
                        {Eigen::Vector3d(0.02, 0.05, -0.01), 0.0, false},
                        {Eigen::Vector3d(0.0, 0.05, 0.0), 4.8, false},
                        {Eigen::Vector3d(0.03, 0.05, 0.01), 4.8, true},
-                       {Eigen::Vector3d(0.03, 0.05, 0.01), 4.8, true, 0.5}};
+                       {Eigen::Vector3d(0.03, 0.05, 0.01), 4.8, true, 0.5},
+                       // A beam change of the wrong sign: frames corrected for a stronger beam.
+                       {Eigen::Vector3d(0.0, 0.05, 0.0), -1.5, false}};
 
 // A normal in the host frame that faces the camera, tilted away from the viewing ray.
 Eigen::Vector3d tilted_normal(const Eigen::Vector3d& ray) {
@@ -60,7 +62,7 @@ TEST(IlluminatorFactor, MatchesDistancesBeamAndIncidenceOfSyntheticPointPairs) {
       const Eigen::Vector3d n_h = tilted_normal(ray);
       // Direct: (d_h / d_t)^2 (cos alpha_t / cos alpha_h)^m (cos theta_t / cos theta_h).
       double expected = (X_h - c.offset).squaredNorm() / (X_t - c.offset).squaredNorm();
-      if (c.beam > 0.0) {
+      if (c.beam != 0.0) {
         const double cos_alpha_h = (X_h - c.offset).normalized().z();
         const double cos_alpha_t = (X_t - c.offset).normalized().z();
         expected *= std::pow(cos_alpha_t / cos_alpha_h, c.beam);

@@ -1,5 +1,6 @@
 // The public contract of DirectOdometry that needs no sequence: input checks and names.
 
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -29,6 +30,35 @@ TEST(OdometryApi, WrongImageTypeOrSizeNamesTheField) {
   frame.image = cv::Mat(60, 80, CV_32FC1, cv::Scalar(10));
   frame.exposure = -1.0;
   EXPECT_THROW(odometry.process(frame), std::invalid_argument);
+}
+
+TEST(OdometryApi, TheBeamExponentOfAFrameIsCheckedAndTakenFromThenOn) {
+  OdometryOptions options;
+  options.illuminator_correction = true;
+  options.beam_exponent = 2.0;
+  DirectOdometry odometry(small_camera(), options);
+  OdometryFrame frame;
+  frame.image = cv::Mat(60, 80, CV_32FC1, cv::Scalar(100));
+  frame.beam_exponent = std::numeric_limits<double>::quiet_NaN();
+  try {
+    odometry.process(frame);
+    FAIL() << "a beam exponent NaN was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("OdometryFrame.beam_exponent"), std::string::npos) << e.what();
+  }
+  EXPECT_DOUBLE_EQ(odometry.options().beam_exponent, 2.0) << "a refused frame changes nothing";
+  frame.beam_exponent = 4.82;
+  odometry.process(frame);
+  EXPECT_DOUBLE_EQ(odometry.options().beam_exponent, 4.82);
+  frame.beam_exponent.reset();  // a frame without one keeps the last
+  frame.frame_index = 1;
+  odometry.process(frame);
+  EXPECT_DOUBLE_EQ(odometry.options().beam_exponent, 4.82);
+  // Negative: the frames were corrected for a stronger beam than the lamp's.
+  frame.beam_exponent = -1.5;
+  frame.frame_index = 2;
+  odometry.process(frame);
+  EXPECT_DOUBLE_EQ(odometry.options().beam_exponent, -1.5);
 }
 
 TEST(OdometryApi, FlatImagesNeverCrashAndGivePosesOnlyOnceInitialised) {

@@ -57,6 +57,20 @@ TEST(PipelineConfig, GivenCalibrationBenchFileAddsTheBeam) {
       load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-given-calibration.yaml");
   EXPECT_FALSE(config.worker.pipeline.calibration.background_thread);
   EXPECT_NEAR(config.worker.pipeline.odometry.beam_exponent, std::log(0.5) / std::log(std::cos(30.0 * M_PI / 180.0)), 0.01);
+  EXPECT_FALSE(config.worker.pipeline.estimate_beam);
+  // The same with the beam refined online from the data sheet's exponent (README's Table 2 with
+  // the lens vignette of a lamp-off calibration).
+  const PipelineConfig refined =
+      load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-lens-vignette-beam-refined.yaml");
+  EXPECT_FALSE(refined.worker.pipeline.calibration.background_thread);
+  EXPECT_EQ(refined.worker.pipeline.given_calibration_holds, GivenCalibrationParts::Vignette);
+  EXPECT_TRUE(refined.worker.pipeline.estimate_beam);
+  EXPECT_TRUE(refined.worker.pipeline.beam_in_odometry);
+  EXPECT_DOUBLE_EQ(refined.worker.pipeline.odometry.beam_exponent, config.worker.pipeline.odometry.beam_exponent);
+  // The lamp-off calibration that gives the lens vignette: repeatable, V straight at the rim.
+  const PipelineConfig lens = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/lens-calibration.yaml");
+  EXPECT_FALSE(lens.worker.pipeline.calibration.background_thread);
+  EXPECT_GT(lens.worker.pipeline.calibration.backend.vignette_rim_curvature_weight, 0.0);
 }
 
 TEST(PipelineConfig, LensVignetteBenchFileHoldsTheVignetteWithTheBeam) {
@@ -119,9 +133,12 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
       write_pipeline_yaml("given_vignette", "calibration:\n  given: nirslam_given_calibration\n  given_holds: vignette\n"));
   EXPECT_EQ(lens_only.worker.pipeline.given_calibration_holds, GivenCalibrationParts::Vignette);
   EXPECT_FALSE(lens_only.worker.pipeline.estimate_beam);
+  EXPECT_FALSE(lens_only.worker.pipeline.beam_in_odometry);
   const PipelineConfig beam = load_pipeline_config(write_pipeline_yaml(
-      "given_beam", "calibration:\n  given: nirslam_given_calibration\n  given_holds: vignette\n  estimate_beam: true\n"));
+      "given_beam", "calibration:\n  given: nirslam_given_calibration\n  given_holds: vignette\n  estimate_beam: true\n"
+                    "  beam_in_odometry: true\n"));
   EXPECT_TRUE(beam.worker.pipeline.estimate_beam);
+  EXPECT_TRUE(beam.worker.pipeline.beam_in_odometry);
   const std::string bad_part = pipeline_config_error(write_pipeline_yaml("given_lens", "calibration:\n  given_holds: lens\n"));
   EXPECT_NE(bad_part.find("calibration.given_holds"), std::string::npos) << bad_part;
   EXPECT_NE(bad_part.find("'lens'"), std::string::npos) << bad_part;

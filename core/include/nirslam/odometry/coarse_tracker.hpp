@@ -64,6 +64,8 @@ public:
                          double b_guess, const std::vector<double>* abort_reference = nullptr,
                          double abort_factor = 1.5) const;
 
+  // The lamp's geometry from the next alignment on (an online beam estimate).
+  void set_lamp(const LampGeometry& lamp) { options_.lamp = lamp; }
   void set_affine_priors(double a_weight, double b_weight) {
     options_.affine_a_prior = a_weight;
     options_.affine_b_prior = b_weight;

@@ -126,6 +126,11 @@ struct OdometryFrame {
   // With illuminator_correction: multiplies the exposure. Without it, a lamp that is on (> 0)
   // leaves the affine brightness free as if the exposure were absent (OdometryOptions priors).
   std::optional<double> illuminator_power_w;
+  // With illuminator_correction: the lamp's beam exponent m from this frame on, e.g. an online
+  // estimate (PhotometricEstimate::beam_exponent), instead of OdometryOptions::beam_exponent.
+  // Every residual evaluates the beam with the current m, so a new value applies to the window's
+  // keyframes alike.
+  std::optional<double> beam_exponent;
 };
 
 enum class TrackingStatus { Initialising, Tracking, Lost, NewSegment };

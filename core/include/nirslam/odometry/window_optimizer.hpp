@@ -91,6 +91,9 @@ struct WindowStatistics {
 class WindowOptimizer {
 public:
   WindowOptimizer(const LevelCamera& camera, const WindowOptions& options);
+  // The lamp's geometry from the next optimisation on (an online beam estimate); the
+  // marginalisation prior keeps the linearisation it was made with.
+  void set_lamp(const LampGeometry& lamp) { options_.lamp = lamp; }
 
   std::vector<WindowFrame>& frames() { return frames_; }
   const std::vector<WindowFrame>& frames() const { return frames_; }

@@ -145,6 +145,10 @@ struct OnlineCalibrationOptions {
   // estimate_vignette off), described by this text; the rest is estimated. A held response names
   // the ambiguity resolution (Given) unless a power sweep does.
   std::string given_part;
+  // Set: the corrected frames are divided by this vignette (the lens's alone) instead of the
+  // estimated halo factor, whose beam the odometry's lamp factor then carries
+  // (calibration.beam_in_odometry); the back end's energy still has the whole halo factor.
+  std::optional<VignetteModel> correction_vignette;
   EstimateGate gate;                  // estimates that fail it are not handed on (see EstimateGate)
   // The grey range (0..255) the held initial response was fitted over (PhotometricEstimate::
   // grey_low / grey_high of the run that estimated it): the exposure estimator then trusts G

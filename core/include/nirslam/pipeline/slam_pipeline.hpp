@@ -121,6 +121,12 @@ struct PipelineOptions {
   // times cos(alpha)^m with m its only unknown (beam_halo.hpp). It starts from the configured
   // exponent, or from 2 (a 45-degree half-power half angle) when none is configured.
   bool estimate_beam = false;
+  // With the lens vignette held in the illuminated mode: the frames are corrected with the lens
+  // vignette alone and the odometry's lamp factor carries the beam, cos(alpha_h)^m /
+  // cos(alpha_t)^m for each residual, with m configured or (estimate_beam) the back end's current
+  // estimate handed on with every frame. Off: the corrected frames are divided by the whole halo
+  // factor, so a changing m re-corrects new frames but not the window's keyframes.
+  bool beam_in_odometry = false;
   bool light_offset_configured = false;
   bool estimate_light_offset = true;
   bool apply_estimated_light_offset = false;

@@ -237,16 +237,32 @@ TEST(GivenCalibration, PipelineHoldsAGivenPartAndEstimatesTheRest) {
   fs::remove_all(folder);
 }
 
+// The illuminated mode over a held lens vignette (written as DSO files) with the beam estimated,
+// on a 75-degree camera, as the beam tests below share it.
+struct LampOverLensVignette {
+  VignetteModel lens{Eigen::Vector3d(-0.25, 0.0, 0.0)};
+  fs::path folder;
+  std::shared_ptr<PinholeCamera> camera;
+  PipelineOptions options;
+
+  explicit LampOverLensVignette(const std::string& name)
+      : folder(write_dso_files(name, ResponseModel::from_preset(ResponsePreset::Gamma), lens)) {
+    const double f = 80.0 / std::tan(37.5 * M_PI / 180.0);
+    camera = std::make_shared<PinholeCamera>(kVignetteWidth, kVignetteHeight,
+                                             Eigen::Vector4d(f, f, 0.5 * (kVignetteWidth - 1), 0.5 * (kVignetteHeight - 1)));
+    options = calibrated_with_files(folder);
+    options.mode = PipelineMode::Illuminated;
+    options.given_calibration_holds = GivenCalibrationParts::Vignette;
+    options.estimate_beam = true;
+  }
+  ~LampOverLensVignette() { fs::remove_all(folder); }
+};
+
 TEST(GivenCalibration, PipelineEstimatesTheBeamOverTheGivenLensVignette) {
-  const VignetteModel lens{Eigen::Vector3d(-0.25, 0.0, 0.0)};
-  const fs::path folder = write_dso_files("pipeline_beam", ResponseModel::from_preset(ResponsePreset::Gamma), lens);
-  const double f = 80.0 / std::tan(37.5 * M_PI / 180.0);
-  const auto camera = std::make_shared<PinholeCamera>(kVignetteWidth, kVignetteHeight,
-                                                      Eigen::Vector4d(f, f, 0.5 * (kVignetteWidth - 1), 0.5 * (kVignetteHeight - 1)));
-  PipelineOptions options = calibrated_with_files(folder);
-  options.mode = PipelineMode::Illuminated;
-  options.given_calibration_holds = GivenCalibrationParts::Vignette;
-  options.estimate_beam = true;
+  LampOverLensVignette setup("pipeline_beam");
+  const VignetteModel& lens = setup.lens;
+  const auto& camera = setup.camera;
+  PipelineOptions& options = setup.options;
   {
     SlamPipeline pipeline(options, camera);
     const auto estimate = pipeline.calibration()->estimate();
@@ -279,19 +295,13 @@ TEST(GivenCalibration, PipelineEstimatesTheBeamOverTheGivenLensVignette) {
   PipelineOptions online = options;
   online.given_calibration_folder.clear();
   EXPECT_NE(construction_error(online, camera).find("calibration.given"), std::string::npos);
-  fs::remove_all(folder);
 }
 
 TEST(GivenCalibration, PipelineLeavesTheBeamToTheOdometry) {
-  const VignetteModel lens{Eigen::Vector3d(-0.25, 0.0, 0.0)};
-  const fs::path folder = write_dso_files("pipeline_beam_odometry", ResponseModel::from_preset(ResponsePreset::Gamma), lens);
-  const double f = 80.0 / std::tan(37.5 * M_PI / 180.0);
-  const auto camera = std::make_shared<PinholeCamera>(kVignetteWidth, kVignetteHeight,
-                                                      Eigen::Vector4d(f, f, 0.5 * (kVignetteWidth - 1), 0.5 * (kVignetteHeight - 1)));
-  PipelineOptions options = calibrated_with_files(folder);
-  options.mode = PipelineMode::Illuminated;
-  options.given_calibration_holds = GivenCalibrationParts::Vignette;
-  options.estimate_beam = true;
+  LampOverLensVignette setup("pipeline_beam_odometry");
+  const VignetteModel& lens = setup.lens;
+  const auto& camera = setup.camera;
+  PipelineOptions& options = setup.options;
   options.odometry.beam_exponent = 4.82;
   // A uniform grey frame: corrected, its corner over its centre is 1 / V there.
   Frame frame;
@@ -332,7 +342,6 @@ TEST(GivenCalibration, PipelineLeavesTheBeamToTheOdometry) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("calibration.beam_in_odometry"), std::string::npos) << e.what();
   }
-  fs::remove_all(folder);
 }
 
 TEST(GivenCalibration, PipelineHoldsTheGivenModel) {

@@ -284,7 +284,7 @@ void add_run_command(CLI::App& parent, CommandAction& action) {
                   "output: the modes with calibration hold it instead of estimating it online (config: calibration.given)");
   cmd->add_flag("--online-calibration", options->online_calibration,
                 "Estimate the whole photometric calibration online: leave out the config's calibration.given, "
-                "given_holds and estimate_beam (bench's modes outside --given-calibration-modes)");
+                "given_holds, estimate_beam and beam_in_odometry (bench's modes outside --given-calibration-modes)");
   cmd->callback([options, &action] { action = [options] { return run_headless(*options); }; });
 }
 

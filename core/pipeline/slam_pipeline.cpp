@@ -66,6 +66,13 @@ bool runs_calibration(PipelineMode mode) {
   return mode == PipelineMode::Calibrated || mode == PipelineMode::Illuminated;
 }
 
+// calibration.beam_in_odometry in effect: the lens vignette held alone, the frames corrected with
+// it, the illuminated mode's lamp factor carrying the beam.
+static bool odometry_carries_beam(const PipelineOptions& o) {
+  return o.beam_in_odometry && o.mode == PipelineMode::Illuminated && !o.given_calibration_folder.empty() &&
+         o.given_calibration_holds == GivenCalibrationParts::Vignette;
+}
+
 bool corrects_illuminator(PipelineMode mode) {
   return mode == PipelineMode::Illuminated || mode == PipelineMode::OdometryIlluminated;
 }
@@ -82,8 +89,8 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
   const double configured_beam_exponent = options_.odometry.beam_exponent;
   if (runs_calibration(options_.mode)) {
     // An estimated halo factor holds the beam; a given lens vignette held alone does not.
-    if (!given_calibration || (options_.given_calibration_holds != GivenCalibrationParts::Both &&
-                               !(options_.beam_in_odometry && options_.mode == PipelineMode::Illuminated)))
+    if (!given_calibration ||
+        (options_.given_calibration_holds != GivenCalibrationParts::Both && !odometry_carries_beam(options_)))
       options_.odometry.beam_exponent = 0.0;
     options_.odometry.brightness_exponent = options_.corrected_frame_exponent;
   } else {
@@ -171,8 +178,7 @@ void SlamPipeline::hold_given_calibration(double beam_exponent) {
         options_.calibration.given_part +=
             fmt::format(" times the lamp's beam cos(alpha)^{:.2f} (fitted to {:.4f} rms)", beam_exponent, halo.rms);
       }
-      // Only the illuminated mode's odometry has the lamp factor that can carry the beam.
-      if (options_.beam_in_odometry && options_.mode == PipelineMode::Illuminated) {
+      if (odometry_carries_beam(options_)) {
         options_.calibration.correction_vignette = given.vignette;
         options_.calibration.given_part += "; the frames corrected with the lens vignette alone, the odometry's lamp factor carries the beam";
       }
@@ -272,7 +278,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     else if (result.photometric)
       input.exposure = result.photometric->exposure;
     input.illuminator_power_w = frame.illuminator_power_w;
-    if (options_.calibration.correction_vignette && calibration_)
+    if (odometry_carries_beam(options_) && calibration_)
       if (const auto estimate = calibration_->estimate(); estimate && estimate->beam_exponent)
         input.beam_exponent = *estimate->beam_exponent;
     result.timings.undistort_ms = ms_since(start);

@@ -72,6 +72,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   odometry.read<double>("beam_exponent", pipeline.odometry.beam_exponent, 0.0, 100.0);
   odometry.read_flag("surface_normals", pipeline.odometry.lamp_surface_normals);
   odometry.read_flag("lamp_factor_derivatives", pipeline.odometry.lamp_factor_derivatives);
+  odometry.read_flag("beam_corrected_weights", pipeline.odometry.beam_corrected_weights);
   odometry.read_flag("init_direction_search", pipeline.odometry.init_direction_search);
   odometry.read<int>("init_search_prune_after_frames", pipeline.odometry.init_search_prune_after_frames, 1, 100);
   odometry.read<int>("init_search_candidates_kept", pipeline.odometry.init_search_candidates_kept, 0, 1000);
@@ -108,6 +109,11 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   }
   calibration.read_flag("estimate_beam", pipeline.estimate_beam);
   calibration.read_flag("beam_in_odometry", pipeline.beam_in_odometry);
+  if (const auto halo = calibration.read_text("lamp_halo")) {
+    const auto model = lamp_halo_model_from_string(*halo);
+    if (!model) calibration.fail_at("lamp_halo", "expected polynomial or beam, got '" + *halo + "'");
+    pipeline.lamp_halo = *model;
+  }
   calibration.reject_unknown_keys();
 
   YamlMapReader demo(root["demo"], file, "demo");

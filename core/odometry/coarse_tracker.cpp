@@ -91,14 +91,16 @@ int CoarseTracker::accumulate(int level, const ImagePyramid& frame, double expos
       }
       const double host_term = s * lamp.g * (p.reference_intensity - reference_b_);
       const double r = sample[0] - host_term - b;
-      if (std::abs(r) > cutoff) {
+      const double beam = target_beam_scale(cam.unproject(Eigen::Vector2d(p.u, p.v)), p.inverse_depth, R, t, options_.lamp);
+      const double r_beam = r / beam;
+      if (std::abs(r_beam) > cutoff) {
         term.kind = 2;
         continue;
       }
       term.kind = 3;
-      const double wg = c2 / (c2 + static_cast<double>(sample.tail<2>().squaredNorm()));
-      const double hw = huber_weight(r, k);
-      term.energy = wg * hw * r * r * (2.0 - hw);
+      const double wg = c2 / (c2 + static_cast<double>(sample.tail<2>().squaredNorm()) / (beam * beam));
+      const double hw = huber_weight(r_beam, k);
+      term.energy = wg * hw * r_beam * r_beam * (2.0 - hw);
       if (H == nullptr) continue;
       Matrix26d d_pose;
       Eigen::Vector2d d_rho;
@@ -107,7 +109,7 @@ int CoarseTracker::accumulate(int level, const ImagePyramid& frame, double expos
           (sample.tail<2>().cast<double>().transpose() * d_pose - host_term * lamp.d_log_g_d_pose).transpose();
       term.J[6] = -host_term;
       term.J[7] = -1.0;
-      term.W = wg * hw;
+      term.W = wg * hw / (beam * beam);
       term.r = r;
     }
   };

@@ -169,7 +169,7 @@ struct DirectOdometry::Impl {
 
   odometry::LampGeometry lamp() const {
     return {options.illuminator_correction, options.light_offset, options.beam_exponent, options.brightness_exponent,
-            options.lamp_factor_derivatives};
+            options.lamp_factor_derivatives, options.beam_corrected_weights};
   }
 
   double a_prior(bool first) const {

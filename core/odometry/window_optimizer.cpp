@@ -220,6 +220,7 @@ double WindowOptimizer::evaluate_residuals(const std::vector<int>* only_hosts, L
         }
         lamp.g = lamp_value(options_, camera_, point, p.R, p.t);
         const double g_scale = lamp.g * p.affine.scale;
+        const double beam = target_beam_scale(camera_.unproject(point.pixel), point.inverse_depth, p.R, p.t, options_.lamp);
 
         Matrix9d H_r = Matrix9d::Zero();
         Vector9d b_r = Vector9d::Zero();
@@ -240,11 +241,12 @@ double WindowOptimizer::evaluate_residuals(const std::vector<int>* only_hosts, L
           const Eigen::Vector3f s = target.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
           const double host_term = g_scale * (point.host_intensity[static_cast<std::size_t>(i)] - p.affine.b_host);
           const double r = s[0] - host_term - p.affine.b_target;
-          const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()));
-          const double hw = huber_weight(r, k);
-          energy += wg * hw * r * r * (2.0 - hw);
+          const double r_beam = r / beam;
+          const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()) / (beam * beam));
+          const double hw = huber_weight(r_beam, k);
+          energy += wg * hw * r_beam * r_beam * (2.0 - hw);
           if (lin == nullptr) continue;
-          const double W = wg * hw;
+          const double W = wg * hw / (beam * beam);
           const Eigen::Vector2d g = s.tail<2>().cast<double>();
           Vector9d J;
           J.head<6>() = (g.transpose() * d_pose - host_term * lamp.d_log_g_d_pose).transpose();
@@ -619,6 +621,7 @@ bool WindowOptimizer::optimize_point(int host_index, WindowPoint& point, int ite
       if (options_.lamp.enabled && !lamp_factor(camera_.unproject(point.pixel), rho, tg.R, tg.t, options_.lamp, lamp,
                                                 point.normal ? &*point.normal : nullptr))
         in_view = false;
+      const double beam = target_beam_scale(camera_.unproject(point.pixel), rho, tg.R, tg.t, options_.lamp);
       for (int i = 0; i < kPatternSize && in_view; ++i) {
         const auto& o = kPattern[static_cast<std::size_t>(i)];
         const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(o[0], o[1]);
@@ -631,9 +634,11 @@ bool WindowOptimizer::optimize_point(int host_index, WindowPoint& point, int ite
         const double host_term =
             lamp.g * tg.affine.scale * (point.host_intensity[static_cast<std::size_t>(i)] - tg.affine.b_host);
         const double r = s[0] - host_term - tg.affine.b_target;
-        const double W = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm())) * huber_weight(r, k);
-        const double hw = huber_weight(r, k);
-        e += W / hw * hw * r * r * (2.0 - hw);
+        const double r_beam = r / beam;
+        const double hw = huber_weight(r_beam, k);
+        const double wg = c2 / (c2 + static_cast<double>(s.tail<2>().squaredNorm()) / (beam * beam));
+        const double W = wg * hw / (beam * beam);
+        e += wg * hw * r_beam * r_beam * (2.0 - hw);
         Matrix26d d_pose;
         Eigen::Vector2d d_rho;
         warp_jacobians(camera_, w, tg.t, d_pose, d_rho);

@@ -66,11 +66,22 @@ bool runs_calibration(PipelineMode mode) {
   return mode == PipelineMode::Calibrated || mode == PipelineMode::Illuminated;
 }
 
-// calibration.beam_in_odometry in effect: the lens vignette held alone, the frames corrected with
-// it, the illuminated mode's lamp factor carrying the beam.
+// calibration.lamp_halo: beam in effect (the illuminated mode; other modes keep the polynomial).
+static bool halo_is_the_beam(const PipelineOptions& o) {
+  return o.lamp_halo == LampHaloModel::Beam && o.mode == PipelineMode::Illuminated;
+}
+// The frames corrected with a lens vignette alone (held, or flat with lamp_halo: beam), the
+// illuminated mode's lamp factor carrying the beam.
 static bool odometry_carries_beam(const PipelineOptions& o) {
-  return o.beam_in_odometry && o.mode == PipelineMode::Illuminated && !o.given_calibration_folder.empty() &&
-         o.given_calibration_holds == GivenCalibrationParts::Vignette;
+  if (o.mode != PipelineMode::Illuminated) return false;
+  if (o.given_calibration_folder.empty()) return halo_is_the_beam(o);
+  return o.beam_in_odometry && o.given_calibration_holds == GivenCalibrationParts::Vignette;
+}
+
+std::optional<LampHaloModel> lamp_halo_model_from_string(const std::string& text) {
+  if (text == "polynomial") return LampHaloModel::Polynomial;
+  if (text == "beam") return LampHaloModel::Beam;
+  return std::nullopt;
 }
 
 bool corrects_illuminator(PipelineMode mode) {
@@ -87,20 +98,29 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
     options_.light_offset_estimation.beam_exponent = options_.odometry.beam_exponent;
   const bool given_calibration = runs_calibration(options_.mode) && !options_.given_calibration_folder.empty();
   const double configured_beam_exponent = options_.odometry.beam_exponent;
+  if (halo_is_the_beam(options_) && given_calibration)
+    throw std::invalid_argument(
+        "calibration.lamp_halo: beam models the halo factor without a given calibration; with calibration.given, "
+        "use given_holds: vignette with estimate_beam and beam_in_odometry");
   if (runs_calibration(options_.mode)) {
     // An estimated halo factor holds the beam; a given lens vignette held alone does not.
-    if (!given_calibration ||
-        (options_.given_calibration_holds != GivenCalibrationParts::Both && !odometry_carries_beam(options_)))
+    if (!odometry_carries_beam(options_) &&
+        (!given_calibration || options_.given_calibration_holds != GivenCalibrationParts::Both))
       options_.odometry.beam_exponent = 0.0;
     options_.odometry.brightness_exponent = options_.corrected_frame_exponent;
   } else {
     options_.odometry.brightness_exponent = options_.raw_frame_exponent;
   }
-  if (options_.beam_in_odometry && runs_calibration(options_.mode) &&
+  if (options_.beam_in_odometry && runs_calibration(options_.mode) && !halo_is_the_beam(options_) &&
       (!given_calibration || options_.given_calibration_holds != GivenCalibrationParts::Vignette))
     throw std::invalid_argument("calibration.beam_in_odometry needs the lens vignette held alone (calibration.given with given_holds: vignette)");
-  if (given_calibration) hold_given_calibration(configured_beam_exponent);
-  else if (options_.estimate_beam && runs_calibration(options_.mode))
+  if (given_calibration) {
+    hold_given_calibration(configured_beam_exponent);
+  } else if (halo_is_the_beam(options_)) {
+    options_.calibration.given_part = "a flat lens (calibration.lamp_halo: beam; the lens's vignetting goes into the beam's m)";
+    hold_lens_vignette(VignetteModel{}, configured_beam_exponent, true);
+    spdlog::info("halo factor modelled as the lamp's beam alone: {}", options_.calibration.given_part);
+  } else if (options_.estimate_beam && runs_calibration(options_.mode))
     throw std::invalid_argument("calibration.estimate_beam needs a lens vignette given (calibration.given with given_holds: vignette)");
   if (runs_calibration(options_.mode))
     calibration_ = std::make_unique<OnlinePhotometricCalibration>(options_.calibration);
@@ -152,40 +172,44 @@ void SlamPipeline::hold_given_calibration(double beam_exponent) {
       backend.estimate_response = false;
       options_.calibration.given_part = "response given: " + given.response_description;
       break;
-    case GivenCalibrationParts::Vignette: {
-      backend.initial_vignette = given.vignette;
-      backend.estimate_vignette = false;
+    case GivenCalibrationParts::Vignette:
       options_.calibration.given_part = "lens vignette given: " + given.vignette_description;
-      if (options_.estimate_beam) {
-        if (!camera_)
-          throw std::invalid_argument("calibration.estimate_beam: the beam's angles need the camera's calibration");
-        constexpr double kBeamStart = 2.0;  // cos(45 deg)^2 = 1/2
-        backend.beam_halo = beam_halo_for_camera(*camera_, given.vignette, beam_exponent > 0.0 ? beam_exponent : kBeamStart);
-        backend.initial_vignette.v = backend.beam_halo->vignette(backend.beam_halo->initial_exponent());
-        backend.estimate_vignette = true;
-        options_.calibration.given_part += fmt::format(" times the lamp's beam cos(alpha)^m, m estimated (from {:.2f})",
-                                                       backend.beam_halo->initial_exponent());
-      } else if (beam_exponent > 0.0 && camera_) {
-        // The lamp lights what the camera sees through its beam: the halo the frames show.
-        const VignetteFit halo = fit_vignette_to_image(
-            halo_with_beam(given.vignette.render(camera_->width(), camera_->height()), *camera_, beam_exponent));
-        if (halo.rms > kGivenVignetteMaxRms)
-          throw InputError(options_.given_calibration_folder / "vignette.png",
-                           fmt::format("this lens vignette times the lamp's beam cos(alpha)^{:.2f} fits nirslam's radial "
-                                       "model only to {:.4f} rms (max {:.3f})",
-                                       beam_exponent, halo.rms, halo.max));
-        backend.initial_vignette = halo.vignette;
-        options_.calibration.given_part +=
-            fmt::format(" times the lamp's beam cos(alpha)^{:.2f} (fitted to {:.4f} rms)", beam_exponent, halo.rms);
-      }
-      if (odometry_carries_beam(options_)) {
-        options_.calibration.correction_vignette = given.vignette;
-        options_.calibration.given_part += "; the frames corrected with the lens vignette alone, the odometry's lamp factor carries the beam";
-      }
+      hold_lens_vignette(given.vignette, beam_exponent, options_.estimate_beam);
       break;
-    }
   }
   spdlog::info("photometric calibration partly given, the rest estimated online: {}", options_.calibration.given_part);
+}
+
+void SlamPipeline::hold_lens_vignette(const VignetteModel& lens, double beam_exponent, bool estimate_beam) {
+  PhotometricBackendOptions& backend = options_.calibration.backend;
+  backend.initial_vignette = lens;
+  backend.estimate_vignette = false;
+  if (estimate_beam) {
+    if (!camera_) throw std::invalid_argument(
+          "calibration.estimate_beam / lamp_halo: beam: the beam's angles need the camera's calibration");
+    constexpr double kBeamStart = 2.0;  // cos(45 deg)^2 = 1/2
+    backend.beam_halo = beam_halo_for_camera(*camera_, lens, beam_exponent > 0.0 ? beam_exponent : kBeamStart);
+    backend.initial_vignette.v = backend.beam_halo->vignette(backend.beam_halo->initial_exponent());
+    backend.estimate_vignette = true;
+    options_.calibration.given_part +=
+        fmt::format(" times the lamp's beam cos(alpha)^m, m estimated (from {:.2f})", backend.beam_halo->initial_exponent());
+  } else if (beam_exponent > 0.0 && camera_) {
+    // The lamp lights what the camera sees through its beam: the halo the frames show.
+    const VignetteFit halo =
+        fit_vignette_to_image(halo_with_beam(lens.render(camera_->width(), camera_->height()), *camera_, beam_exponent));
+    if (halo.rms > kGivenVignetteMaxRms)
+      throw InputError(options_.given_calibration_folder / "vignette.png",
+                       fmt::format("this lens vignette times the lamp's beam cos(alpha)^{:.2f} fits nirslam's radial "
+                                   "model only to {:.4f} rms (max {:.3f})",
+                                   beam_exponent, halo.rms, halo.max));
+    backend.initial_vignette = halo.vignette;
+    options_.calibration.given_part +=
+        fmt::format(" times the lamp's beam cos(alpha)^{:.2f} (fitted to {:.4f} rms)", beam_exponent, halo.rms);
+  }
+  if (odometry_carries_beam(options_)) {
+    options_.calibration.correction_vignette = lens;
+    options_.calibration.given_part += "; the frames corrected with the lens vignette alone, the odometry's lamp factor carries the beam";
+  }
 }
 
 const PinholeCamera* SlamPipeline::odometry_camera() const { return odometry_ ? pinhole_.get() : nullptr; }
@@ -403,8 +427,10 @@ std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
     }
     if (estimate->beam_exponent) {
       const double m = *estimate->beam_exponent;
-      view->lamp_beam = m > 0.0 ? fmt::format("lamp beam cos^{:.2f} (half angle {:.1f} deg), estimated over the given lens vignette",
-                                              m, std::acos(std::pow(0.5, 1.0 / m)) * 180.0 / M_PI)
+      view->lamp_beam = m > 0.0 ? fmt::format("lamp beam cos^{:.2f} (half angle {:.1f} deg), estimated over {}", m,
+                                              std::acos(std::pow(0.5, 1.0 / m)) * 180.0 / M_PI,
+                                              halo_is_the_beam(options_) ? "a flat lens (the lens's vignetting in it)"
+                                                                         : "the given lens vignette")
                                 : fmt::format("lamp beam cos^{:.2f}: not darker off the axis", m);
     } else if (!lens_vignette_.empty()) {
       if (estimate->model_version != beam_fit_version_) fit_beam(*estimate);

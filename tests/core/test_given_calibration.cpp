@@ -344,6 +344,58 @@ TEST(GivenCalibration, PipelineLeavesTheBeamToTheOdometry) {
   }
 }
 
+// calibration.lamp_halo: beam, the fully online lamp mode: no files, the halo factor the lamp's
+// beam alone over a flat lens, m estimated and carried by the odometry.
+TEST(GivenCalibration, HaloAsTheBeamAloneNeedsNoFilesAndLeavesTheBeamToTheOdometry) {
+  LampOverLensVignette setup("pipeline_halo_beam");
+  const auto& camera = setup.camera;
+  PipelineOptions options = setup.options;
+  options.given_calibration_folder.clear();
+  options.estimate_beam = false;
+  options.lamp_halo = LampHaloModel::Beam;
+  Frame frame;
+  frame.image = cv::Mat(kVignetteHeight, kVignetteWidth, CV_8UC1, cv::Scalar(128));
+  frame.exposure_ms = 10.0;
+  {
+    SlamPipeline pipeline(options, camera);
+    ASSERT_NE(pipeline.odometry(), nullptr);
+    const auto estimate = pipeline.calibration()->estimate();
+    ASSERT_TRUE(estimate->beam_exponent);
+    EXPECT_DOUBLE_EQ(*estimate->beam_exponent, 2.0) << "no beam configured: a 45-degree start";
+    // The halo the back end starts from: cos(alpha)^2 alone.
+    EXPECT_LT((estimate->vignette.v - beam_halo_for_camera(*camera, VignetteModel{}, 2.0).vignette(2.0)).norm(), 2e-3);
+    // The frames divided by the flat lens (not at all): a uniform frame stays uniform.
+    const PipelineFrameResult result = pipeline.process(frame);
+    ASSERT_FALSE(result.corrected.empty());
+    EXPECT_NEAR(result.corrected.at<float>(0, 0) / result.corrected.at<float>(kVignetteHeight / 2, kVignetteWidth / 2),
+                1.0, 1e-4);
+    EXPECT_NE(pipeline.calibration()->estimate()->ambiguity_detail.find("the odometry's lamp factor carries the beam"),
+              std::string::npos)
+        << pipeline.calibration()->estimate()->ambiguity_detail;
+    const auto view = pipeline.photometric_view();
+    EXPECT_NE(view->lamp_beam.find("estimated over a flat lens"), std::string::npos) << view->lamp_beam;
+  }
+  options.odometry.beam_exponent = 4.82;  // the data sheet's, as the start
+  {
+    SlamPipeline pipeline(options, camera);
+    EXPECT_DOUBLE_EQ(*pipeline.calibration()->estimate()->beam_exponent, 4.82);
+    EXPECT_DOUBLE_EQ(pipeline.odometry()->options().beam_exponent, 4.82);
+  }
+  // The calibrated mode keeps the polynomial halo factor (the lamp is not modelled there).
+  PipelineOptions calibrated = options;
+  calibrated.mode = PipelineMode::Calibrated;
+  EXPECT_FALSE(SlamPipeline(calibrated, camera).calibration()->estimate()->beam_exponent);
+  // With a given calibration the beam over its lens vignette is given_holds' business.
+  PipelineOptions given = options;
+  given.given_calibration_folder = setup.folder;
+  try {
+    SlamPipeline pipeline(given, camera);
+    ADD_FAILURE() << "lamp_halo: beam with a given calibration";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("calibration.lamp_halo"), std::string::npos) << e.what();
+  }
+}
+
 TEST(GivenCalibration, PipelineHoldsTheGivenModel) {
   const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Filmic);
   const VignetteModel vignette{Eigen::Vector3d(-0.25, 0.0, 0.0)};

@@ -119,6 +119,35 @@ TEST(IlluminatorFactor, LogDerivativesMatchNumericDifferentiation) {
   }
 }
 
+// The target's beam B(alpha_t)^gamma, which beam-corrected weights divide out: the beam part of
+// g's ratio B(alpha_t) / B(alpha_h), from the light (not the lens) to the point; 1 unless asked.
+TEST(IlluminatorFactor, TargetBeamScaleIsTheTargetsPartOfTheBeamRatio) {
+  const SE3 T_th = kTarget * kHost.inverse();
+  const Eigen::Matrix3d R = T_th.rotation_matrix();
+  const Eigen::Vector3d t = T_th.translation();
+  const Eigen::Vector3d ray = kCamera.unproject({40.0, 200.0});
+  const double rho = 0.6;
+  LampGeometry lamp{true, Eigen::Vector3d(0.03, 0.05, 0.01), 4.8, 0.5};
+  EXPECT_EQ(target_beam_scale(ray, rho, R, t, lamp), 1.0);
+  lamp.beam_corrected_weights = true;
+  const Eigen::Vector3d u_t = R * ray + rho * (t - lamp.offset);
+  const double beam_t = std::pow(u_t.z() / u_t.norm(), 4.8 * 0.5);
+  EXPECT_NEAR(target_beam_scale(ray, rho, R, t, lamp), beam_t, 1e-12);
+  EXPECT_LT(beam_t, 0.95);
+  // Seen from the host itself, the target's beam is the host's: g's beam ratio over the scale.
+  LampGeometry beam_only = lamp;
+  LampGeometry no_beam = lamp;
+  no_beam.beam_exponent = 0.0;
+  const double beam_ratio = lamp_factor_value(ray, rho, R, t, beam_only) / lamp_factor_value(ray, rho, R, t, no_beam);
+  const double beam_h = target_beam_scale(ray, rho, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), lamp);
+  EXPECT_NEAR(beam_ratio, beam_t / beam_h, 1e-9);
+  // Near the beam's edge the weight is floored.
+  lamp.beam_exponent = 400.0;
+  EXPECT_EQ(target_beam_scale(ray, rho, R, t, lamp), kMinTargetBeamScale);
+  lamp.beam_exponent = 0.0;
+  EXPECT_EQ(target_beam_scale(ray, rho, R, t, lamp), 1.0);
+}
+
 TEST(IlluminatorFactor, WithoutDerivativesTheValueStaysAndTheDerivativesAreZero) {
   const SE3 T_th = kTarget * kHost.inverse();
   const Eigen::Vector3d ray = kCamera.unproject({120.0, 150.0});

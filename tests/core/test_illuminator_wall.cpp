@@ -4,6 +4,7 @@
 // (the wall brightens as the rig comes closer) and flat with it; with the factor, the coarse
 // tracker also finds the approach better.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -112,6 +113,15 @@ std::vector<WindowPoint> host_points(const WallSequence& s) {
     }
   }
   return points;
+}
+
+// The host's grey values over a point's residual pattern.
+void set_wall_pattern_intensities(const PyramidLevel& host, WindowPoint& p) {
+  for (int k = 0; k < kPatternSize; ++k) {
+    const auto& o = kPattern[static_cast<std::size_t>(k)];
+    p.host_intensity[static_cast<std::size_t>(k)] =
+        host.at(static_cast<int>(p.pixel.x()) + o[0], static_cast<int>(p.pixel.y()) + o[1])[0];
+  }
 }
 
 // Least-squares slope of y over x.
@@ -277,11 +287,7 @@ TEST(IlluminatorWall, WindowOptimisationWithTheLampFactor) {
     const PyramidLevel& host = s.images[0]->level(0);
     for (std::size_t i = 0; i < points.size(); i += 2) {
       WindowPoint p = points[i];
-      for (int k = 0; k < kPatternSize; ++k) {
-        const auto& o = kPattern[static_cast<std::size_t>(k)];
-        p.host_intensity[static_cast<std::size_t>(k)] =
-            host.at(static_cast<int>(p.pixel.x()) + o[0], static_cast<int>(p.pixel.y()) + o[1])[0];
-      }
+      set_wall_pattern_intensities(host, p);
       p.inverse_depth_prior_weight = 10.0;  // the scale gauge
       p.inverse_depth_prior_mean = p.inverse_depth;
       p.inverse_depth *= 1.0 + 0.05 * noise(rng);
@@ -307,6 +313,91 @@ TEST(IlluminatorWall, WindowOptimisationWithTheLampFactor) {
               energy_plain, error_lamp, energy_lamp);
   EXPECT_LT(energy_lamp, 0.8 * energy_plain);
   EXPECT_LT(error_lamp, error_plain);
+}
+
+// With the beam carried by the residual (frames corrected for the lens alone), lamp-lit
+// residuals are those of beam-corrected frames times the target's B(alpha_t), so rim points
+// weigh less. With beam-corrected weights the window sees the energy of beam-corrected frames.
+TEST(IlluminatorWall, BeamCorrectedWeightsGiveTheEnergyOfBeamCorrectedFrames) {
+  const WallSequence& s = wall_sequence();
+  const double m = s.lamp.beam_exponent();
+  // The light at the lens in both models, so the beam is a function of the pixel alone.
+  auto beam_at_pixel = [&](int x, int y) {
+    const Eigen::Vector3d ray = kWallCamera.unproject(Eigen::Vector2d(x, y));
+    return std::pow(ray.z() / ray.norm(), m);
+  };
+  std::vector<std::shared_ptr<const ImagePyramid>> beam_corrected;
+  double darkest_beam = 1.0;
+  for (const auto& pyramid : s.images) {
+    const PyramidLevel& level = pyramid->level(0);
+    cv::Mat image(level.height, level.width, CV_32F);
+    for (int y = 0; y < level.height; ++y)
+      for (int x = 0; x < level.width; ++x) {
+        image.at<float>(y, x) = static_cast<float>(level.at(x, y)[0] / beam_at_pixel(x, y));
+        darkest_beam = std::min(darkest_beam, beam_at_pixel(x, y));
+      }
+    beam_corrected.push_back(std::make_shared<const ImagePyramid>(image, 3));
+  }
+  ASSERT_LT(darkest_beam, 0.35);  // the corners: the weighting matters there
+  const std::vector<WindowPoint> points = host_points(s);
+  auto window_energy = [&](const std::vector<std::shared_ptr<const ImagePyramid>>& images, const LampGeometry& lamp) {
+    WindowOptions options;
+    options.lamp = lamp;
+    WindowOptimizer window(kWallCamera, options);
+    for (std::size_t v = 0; v < 3; ++v) {
+      WindowFrame f;
+      f.id = static_cast<std::int64_t>(v);
+      f.pyramid = images[v];
+      f.state.T_cam_world = s.T_world_cam[v].inverse();
+      window.add_frame(std::move(f));
+    }
+    const PyramidLevel& host = images[0]->level(0);
+    for (std::size_t i = 0; i < points.size(); i += 2) {
+      WindowPoint p = points[i];
+      set_wall_pattern_intensities(host, p);
+      window.connect_to_all(p, 0);
+      window.frames()[0].points.push_back(p);
+    }
+    return window.energy();
+  };
+  LampGeometry distance_only{true, Eigen::Vector3d::Zero(), 0.0};
+  LampGeometry beam_in_residual{true, Eigen::Vector3d::Zero(), m};
+  const double energy_beam_corrected_frames = window_energy(beam_corrected, distance_only);
+  const double energy_beam_weighted_as_lit = window_energy(s.images, beam_in_residual);
+  beam_in_residual.beam_corrected_weights = true;
+  const double energy_beam_weighted_as_corrected = window_energy(s.images, beam_in_residual);
+  std::printf("window energy at the true poses: beam-corrected frames %.0f; beam in the residual %.0f, "
+              "with beam-corrected weights %.0f\n",
+              energy_beam_corrected_frames, energy_beam_weighted_as_lit, energy_beam_weighted_as_corrected);
+  // Not equal to the bit: the corrected frames are interpolated after the division, and B is
+  // taken at a pattern's centre.
+  EXPECT_NEAR(energy_beam_weighted_as_corrected / energy_beam_corrected_frames, 1.0, 0.01);
+  EXPECT_LT(energy_beam_weighted_as_lit, 0.8 * energy_beam_corrected_frames);
+
+  // The tracker alike, started at the true pose 0.4 m closer: its residual rms in beam-corrected
+  // grey levels either way.
+  std::vector<ReferencePoint> reference;
+  for (const auto& p : points) reference.push_back({p.pixel, p.inverse_depth, Eigen::Vector3d::Zero()});
+  auto tracked_rms = [&](const std::vector<std::shared_ptr<const ImagePyramid>>& images, const LampGeometry& lamp) {
+    CoarseTrackerOptions options;
+    options.lamp = lamp;
+    // An offset b would be in lit grey levels in one model and corrected ones in the other.
+    options.affine_a_prior = 1e8;
+    options.affine_b_prior = 1e8;
+    CoarseTracker tracker(make_level_cameras(kWallCamera, 3), options);
+    tracker.set_reference(images[0], 0.0, 0.0, 1.0, reference);
+    const SE3 truth = s.T_world_cam[2].inverse() * s.T_world_cam[0];
+    const TrackingEstimate e = tracker.track(*images[2], 1.0, truth, 0.0, 0.0);
+    EXPECT_TRUE(e.valid);
+    std::printf("  tracked: translation error %.4f m, a %.3g, b %.3g, rms %.3f\n",
+                (e.T_frame_ref.translation() - truth.translation()).norm(), e.affine_a, e.affine_b, e.rms);
+    return e.rms;
+  };
+  const double rms_beam_corrected_frames = tracked_rms(beam_corrected, distance_only);
+  const double rms_beam_weighted_as_corrected = tracked_rms(s.images, beam_in_residual);
+  std::printf("tracked rms: beam-corrected frames %.3f, beam in the residual with beam-corrected weights %.3f\n",
+              rms_beam_corrected_frames, rms_beam_weighted_as_corrected);
+  EXPECT_NEAR(rms_beam_weighted_as_corrected / rms_beam_corrected_frames, 1.0, 0.02);
 }
 
 }  // namespace

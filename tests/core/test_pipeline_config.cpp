@@ -43,6 +43,7 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 0.5);
   EXPECT_NEAR(config.worker.pipeline.raw_frame_exponent, 1.0 / 2.2, 1e-4);
   EXPECT_TRUE(config.worker.pipeline.odometry.lamp_factor_derivatives);
+  EXPECT_FALSE(config.worker.pipeline.odometry.beam_corrected_weights);
 }
 
 TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
@@ -67,6 +68,14 @@ TEST(PipelineConfig, GivenCalibrationBenchFileAddsTheBeam) {
   EXPECT_TRUE(refined.worker.pipeline.estimate_beam);
   EXPECT_TRUE(refined.worker.pipeline.beam_in_odometry);
   EXPECT_DOUBLE_EQ(refined.worker.pipeline.odometry.beam_exponent, config.worker.pipeline.odometry.beam_exponent);
+  EXPECT_TRUE(refined.worker.pipeline.odometry.beam_corrected_weights);
+  // Fully online: the halo factor the lamp's beam alone, no files.
+  const PipelineConfig halo_beam = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-lamp-halo-beam.yaml");
+  EXPECT_FALSE(halo_beam.worker.pipeline.calibration.background_thread);
+  EXPECT_EQ(halo_beam.worker.pipeline.lamp_halo, LampHaloModel::Beam);
+  EXPECT_TRUE(halo_beam.worker.pipeline.given_calibration_folder.empty());
+  EXPECT_TRUE(halo_beam.worker.pipeline.odometry.beam_corrected_weights);
+  EXPECT_EQ(halo_beam.worker.pipeline.odometry.beam_exponent, 0.0) << "no data sheet";
   // The lamp-off calibration that gives the lens vignette: repeatable, V straight at the rim.
   const PipelineConfig lens = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/lens-calibration.yaml");
   EXPECT_FALSE(lens.worker.pipeline.calibration.background_thread);
@@ -108,8 +117,10 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   EXPECT_FALSE(shipped.worker.pipeline.apply_estimated_light_offset);
   const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
       "lamp", "odometry:\n  light_offset: [0.0, 0.02, 0.0]\n  apply_estimated_light_offset: true\n"
-              "  lamp_factor_derivatives: false\n"));
+              "  lamp_factor_derivatives: false\n"
+              "  beam_corrected_weights: true\n"));
   EXPECT_FALSE(config.worker.pipeline.odometry.lamp_factor_derivatives);
+  EXPECT_TRUE(config.worker.pipeline.odometry.beam_corrected_weights);
   EXPECT_TRUE(config.worker.pipeline.light_offset_configured);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.light_offset.y(), 0.02);
   EXPECT_TRUE(config.worker.pipeline.apply_estimated_light_offset);
@@ -139,6 +150,13 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
                     "  beam_in_odometry: true\n"));
   EXPECT_TRUE(beam.worker.pipeline.estimate_beam);
   EXPECT_TRUE(beam.worker.pipeline.beam_in_odometry);
+  EXPECT_EQ(beam.worker.pipeline.lamp_halo, LampHaloModel::Polynomial);
+  const PipelineConfig halo_beam =
+      load_pipeline_config(write_pipeline_yaml("lamp_halo", "calibration:\n  lamp_halo: beam\n"));
+  EXPECT_EQ(halo_beam.worker.pipeline.lamp_halo, LampHaloModel::Beam);
+  const std::string bad_halo = pipeline_config_error(write_pipeline_yaml("lamp_halo_bad", "calibration:\n  lamp_halo: cosine\n"));
+  EXPECT_NE(bad_halo.find("calibration.lamp_halo"), std::string::npos) << bad_halo;
+  EXPECT_NE(bad_halo.find("'cosine'"), std::string::npos) << bad_halo;
   const std::string bad_part = pipeline_config_error(write_pipeline_yaml("given_lens", "calibration:\n  given_holds: lens\n"));
   EXPECT_NE(bad_part.find("calibration.given_holds"), std::string::npos) << bad_part;
   EXPECT_NE(bad_part.find("'lens'"), std::string::npos) << bad_part;

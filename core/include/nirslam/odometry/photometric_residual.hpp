@@ -16,6 +16,7 @@
 // Poses are T_cam_world, perturbed on the left (T <- exp(xi) T, xi = (upsilon, omega)); the
 // derivative for the host pose follows from the one for T_target_host by the adjoint.
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -102,6 +103,11 @@ struct LampGeometry {
   // false: g from the current estimates, held in each linearisation (no derivatives), so
   // brightness errors of the photometric model cannot move poses and depths through it.
   bool derivatives = true;
+  // With the beam carried here (frames corrected for the lens alone), a target's grey values are
+  // B(alpha_t)^gamma times those of beam-corrected frames, so rim points weigh less than they
+  // would there. true: residual and image gradient divided by it (target_beam_scale) before
+  // the robust and gradient weights, so every point weighs as in beam-corrected frames.
+  bool beam_corrected_weights = false;
 };
 struct LampFactor {
   double g = 1.0;
@@ -169,6 +175,19 @@ inline double lamp_factor_value(const Eigen::Vector3d& ray, double rho, const Ei
                                 const Eigen::Vector3d* normal_host = nullptr) {
   LampFactor f;
   return lamp_factor(ray, rho, R_target_host, t_target_host, lamp, f, normal_host) ? f.g : 1.0;
+}
+
+// B(alpha_t)^gamma of the target's view of a point (1 unless lamp.beam_corrected_weights with a
+// beam), held as a weight, not differentiated, as DSO holds its gradient weights. Floored so a
+// point near the beam's edge cannot dominate.
+inline constexpr double kMinTargetBeamScale = 0.05;
+inline double target_beam_scale(const Eigen::Vector3d& ray, double rho, const Eigen::Matrix3d& R_target_host,
+                                const Eigen::Vector3d& t_target_host, const LampGeometry& lamp) {
+  if (!lamp.enabled || !lamp.beam_corrected_weights || lamp.beam_exponent == 0.0) return 1.0;
+  const Eigen::Vector3d u_t = R_target_host * ray + rho * (t_target_host - lamp.offset);
+  const double n_t = u_t.norm();
+  if (n_t < 1e-12 || u_t.z() <= 0.0) return 1.0;
+  return std::max(kMinTargetBeamScale, std::pow(u_t.z() / n_t, lamp.beam_exponent * lamp.brightness_exponent));
 }
 
 // Brightness transfer host -> target.

@@ -57,6 +57,10 @@ std::vector<PipelineMode> odometry_modes();
 bool runs_calibration(PipelineMode mode);
 bool corrects_illuminator(PipelineMode mode);
 
+// calibration.lamp_halo (PipelineOptions::lamp_halo).
+enum class LampHaloModel { Polynomial, Beam };
+std::optional<LampHaloModel> lamp_halo_model_from_string(const std::string& text);
+
 struct PipelineOptions {
   PipelineMode mode = PipelineMode::Calibrated;
   OdometryOptions odometry;
@@ -127,6 +131,12 @@ struct PipelineOptions {
   // estimate handed on with every frame. Off: the corrected frames are divided by the whole halo
   // factor, so a changing m re-corrects new frames but not the window's keyframes.
   bool beam_in_odometry = false;
+  // How the illuminated mode models the halo factor when no calibration is given: Polynomial,
+  // the vignette model's v1..v3 with the lamp's beam in it (the paper's); Beam, the lamp's beam
+  // cos(alpha)^m alone with m estimated online (from odometry.beam_exponent, or 2) and carried by
+  // the odometry's lamp factor as with beam_in_odometry, the lens's own vignetting taken as flat,
+  // so m absorbs it. No lamp-off sequence needed. Other modes: unaffected.
+  LampHaloModel lamp_halo = LampHaloModel::Polynomial;
   bool light_offset_configured = false;
   bool estimate_light_offset = true;
   bool apply_estimated_light_offset = false;
@@ -233,6 +243,8 @@ private:
   void fit_beam(const PhotometricEstimate& estimate);
   // Reads options_.given_calibration_folder into the calibration's options (the constructor's).
   void hold_given_calibration(double beam_exponent);
+  // The halo factor as this lens vignette times the lamp's beam (held, or m estimated).
+  void hold_lens_vignette(const VignetteModel& lens, double beam_exponent, bool estimate_beam);
   void estimate_light_offset(const OdometryFrame& input, const cv::Mat& irradiance, const OdometryResult& result);
 
   // View state.

@@ -43,7 +43,7 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 0.5);
   EXPECT_NEAR(config.worker.pipeline.raw_frame_exponent, 1.0 / 2.2, 1e-4);
   EXPECT_TRUE(config.worker.pipeline.odometry.lamp_factor_derivatives);
-  EXPECT_FALSE(config.worker.pipeline.odometry.beam_corrected_weights);
+  EXPECT_TRUE(config.worker.pipeline.odometry.beam_corrected_weights);
 }
 
 TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
@@ -118,9 +118,9 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
       "lamp", "odometry:\n  light_offset: [0.0, 0.02, 0.0]\n  apply_estimated_light_offset: true\n"
               "  lamp_factor_derivatives: false\n"
-              "  beam_corrected_weights: true\n"));
+              "  beam_corrected_weights: false\n"));
   EXPECT_FALSE(config.worker.pipeline.odometry.lamp_factor_derivatives);
-  EXPECT_TRUE(config.worker.pipeline.odometry.beam_corrected_weights);
+  EXPECT_FALSE(config.worker.pipeline.odometry.beam_corrected_weights);
   EXPECT_TRUE(config.worker.pipeline.light_offset_configured);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.light_offset.y(), 0.02);
   EXPECT_TRUE(config.worker.pipeline.apply_estimated_light_offset);

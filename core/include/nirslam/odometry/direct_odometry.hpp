@@ -97,7 +97,8 @@ struct OdometryOptions {
   bool lamp_factor_derivatives = true;
   // With a beam: residuals and gradients divided by the target's B(alpha_t)^gamma before
   // weighting, as in frames corrected for the beam (LampGeometry::beam_corrected_weights).
-  bool beam_corrected_weights = false;
+  // Measured better with every calibration tried (README "Illuminator correction").
+  bool beam_corrected_weights = true;
 
   // Initialiser.
   double init_min_parallax_px = 6.0;    // rms translational flow at level 0 for a 640-wide image

@@ -321,10 +321,13 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
     e->model_version = ++version_;
     if (options_.backend.beam_halo) e->beam_exponent = backend_.beam_exponent();
     // The model's course through a run (`nirslam -v`): what drifted, and when.
-    spdlog::debug("photometric model v{}: {} keyframes in the window, {} points; response {} (f^-1(0.5) = {:.4f}); "
-                  "vignette {} ({:.3f}, {:.3f}, {:.3f}){}; residual {:.2f} grey levels",
+    // gamma: the log-log slope of f^-1 between grey 64 and 128, free of the irradiance scale.
+    spdlog::debug("photometric model v{}: {} keyframes in the window, {} points; response {} (f^-1(0.5) = {:.4f}, "
+                  "gamma {:.3f}); vignette {} ({:.3f}, {:.3f}, {:.3f}){}; residual {:.2f} grey levels",
                   e->model_version, step.keyframes, step.points, step.response_estimated ? "estimated" : "held",
-                  e->response.inverse(0.5), step.vignette_estimated ? "estimated" : "held", e->vignette.v[0],
+                  e->response.inverse(0.5),
+                  std::log(e->response.inverse(128.0 / 255.0) / e->response.inverse(64.0 / 255.0)) / std::log(2.0),
+                  step.vignette_estimated ? "estimated" : "held", e->vignette.v[0],
                   e->vignette.v[1], e->vignette.v[2],
                   e->beam_exponent ? fmt::format(", beam m {:.3f}", *e->beam_exponent) : std::string(),
                   step.residual_rms);

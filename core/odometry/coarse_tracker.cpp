@@ -83,15 +83,16 @@ int CoarseTracker::accumulate(int level, const ImagePyramid& frame, double expos
       term.kind = 1;
       const Eigen::Vector3f sample = image.interpolate(static_cast<float>(w.pixel.x()), static_cast<float>(w.pixel.y()));
       LampFactor lamp;
+      const Eigen::Vector3d ray = cam.unproject(Eigen::Vector2d(p.u, p.v));
       if (options_.lamp.enabled) {
         const Eigen::Vector3d normal = p.normal.cast<double>();
-        if (!lamp_factor(cam.unproject(Eigen::Vector2d(p.u, p.v)), p.inverse_depth, R, t, options_.lamp, lamp,
+        if (!lamp_factor(ray, p.inverse_depth, R, t, options_.lamp, lamp,
                          p.normal.isZero() ? nullptr : &normal))
           continue;
       }
       const double host_term = s * lamp.g * (p.reference_intensity - reference_b_);
       const double r = sample[0] - host_term - b;
-      const double beam = target_beam_scale(cam.unproject(Eigen::Vector2d(p.u, p.v)), p.inverse_depth, R, t, options_.lamp);
+      const double beam = target_beam_scale(ray, p.inverse_depth, R, t, options_.lamp);
       const double r_beam = r / beam;
       if (std::abs(r_beam) > cutoff) {
         term.kind = 2;

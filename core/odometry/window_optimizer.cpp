@@ -612,16 +612,17 @@ bool WindowOptimizer::optimize_point(int host_index, WindowPoint& point, int ite
     g = 0.0;
     inliers = 0;
     double total = 0.0;
+    const Eigen::Vector3d ray = camera_.unproject(point.pixel);
     for (const Target& tg : targets) {
       double e = 0.0;
       double H_r = 0.0;
       double g_r = 0.0;
       bool in_view = true;
       LampFactor lamp;
-      if (options_.lamp.enabled && !lamp_factor(camera_.unproject(point.pixel), rho, tg.R, tg.t, options_.lamp, lamp,
-                                                point.normal ? &*point.normal : nullptr))
+      if (options_.lamp.enabled &&
+          !lamp_factor(ray, rho, tg.R, tg.t, options_.lamp, lamp, point.normal ? &*point.normal : nullptr))
         in_view = false;
-      const double beam = target_beam_scale(camera_.unproject(point.pixel), rho, tg.R, tg.t, options_.lamp);
+      const double beam = target_beam_scale(ray, rho, tg.R, tg.t, options_.lamp);
       for (int i = 0; i < kPatternSize && in_view; ++i) {
         const auto& o = kPattern[static_cast<std::size_t>(i)];
         const Eigen::Vector2d px = point.pixel + Eigen::Vector2d(o[0], o[1]);

@@ -632,7 +632,12 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
 
   // Observability: the response needs the same points under different exposures, the vignette
   // the same points at different radii.
-  step.response_estimated = options_.estimate_response && e_max / e_min >= options_.min_exposure_ratio;
+  int exposure_varying = 0;
+  const double varying_log = 0.5 * std::log(options_.min_exposure_ratio);
+  for (double e : exposure) exposure_varying += std::abs(std::log(e)) >= varying_log;  // e is over the median here
+  const double varying_fraction = static_cast<double>(exposure_varying) / K;
+  step.response_estimated = options_.estimate_response && e_max / e_min >= options_.min_exposure_ratio &&
+                            varying_fraction >= options_.min_exposure_varying_fraction;
   {
     int moving = 0;
     for (const Point& p : points_) {
@@ -648,9 +653,11 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   }
   std::string held;
   if (!step.response_estimated)
-    held += options_.estimate_response ? "response held (exposure varies too little: " +
-                                             std::to_string(e_max / e_min).substr(0, 4) + "x)"
-                                       : "response held (fixed)";
+    held += !options_.estimate_response ? "response held (fixed)"
+            : e_max / e_min < options_.min_exposure_ratio
+                ? "response held (exposure varies too little: " + std::to_string(e_max / e_min).substr(0, 4) + "x)"
+                : "response held (exposure varies on " + std::to_string(exposure_varying) + " of " +
+                      std::to_string(K) + " keyframes)";
   if (!step.vignette_estimated)
     held += std::string(held.empty() ? "" : "; ") +
             (options_.estimate_vignette ? "vignette held (points move too little across the image)" : "vignette held (fixed)");

@@ -528,6 +528,37 @@ TEST(PhotometricBackend, DegenerateInputKeepsTheModelAndSaysWhy) {
   EXPECT_TRUE(std::isfinite(empty.response().coefficients().sum()));
 }
 
+// min_exposure_varying_fraction: a window where the exposure changed on 3 keyframes and then
+// stayed put on 17 (an auto exposure at its limit) estimates the response by default and holds
+// it, saying why, once the option asks for half the keyframes away from the median exposure.
+TEST(PhotometricBackend, ResponseHeldWhenFewKeyframesVaryTheExposure) {
+  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Log);
+  const VignetteModel vignette{Eigen::Vector3d(-0.35, 0.10, -0.05)};
+  std::vector<PhotometricKeyframe> window = synthetic(truth, vignette, 3, 40, true, true, 0.8, 5).keyframes;
+  for (auto& kf : synthetic(truth, vignette, 17, 40, true, true, 0.0, 5).keyframes) {
+    kf.frame_index += 3;
+    kf.timestamp_s += 0.3;
+    window.push_back(std::move(kf));
+  }
+  for (const double fraction : {0.0, 0.5}) {
+    PhotometricBackendOptions options;
+    options.min_exposure_varying_fraction = fraction;
+    PhotometricBackend backend(options);
+    for (const auto& kf : window) backend.add_keyframe(kf);
+    const BackendStep step = backend.optimise(30, true);
+    ASSERT_TRUE(step.ok) << step.status;
+    ASSERT_EQ(step.keyframes, 20);
+    if (fraction == 0.0) {
+      EXPECT_TRUE(step.response_estimated) << step.status;
+      EXPECT_NE(backend.response().coefficients(), options.initial_response.coefficients());
+    } else {
+      EXPECT_FALSE(step.response_estimated);
+      EXPECT_NE(step.status.find("exposure varies on 2 of 20 keyframes"), std::string::npos) << step.status;
+      EXPECT_EQ(backend.response().coefficients(), options.initial_response.coefficients());
+    }
+  }
+}
+
 // The one-sided residual of a clipped sample (clip_bound_residual): zero where the bound holds,
 // the lit residual with its Jacobian where it does not; the Jacobian against central differences
 // away from the kink.

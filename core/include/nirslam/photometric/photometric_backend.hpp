@@ -249,6 +249,14 @@ struct PhotometricBackendOptions {
   // 18 % of them; with the default exposure margin 3 moves no row by more than 0.1 grey levels.
   double clip_bound_margin_grey = 3.0;
   double min_exposure_ratio = 1.15;   // max/min exposure in the window below which f is not estimated
+  // ... and the fraction of the window's keyframes whose exposure is at least sqrt(min_exposure_ratio)
+  // from the window's median below which it is not either. Under the co-located lamp the
+  // irradiance changes with every keyframe's distances too, so once the auto exposure settles
+  // (at its limit, in the dark) keyframes of one exposure fill the window, and the response's
+  // gamma was fitted to the lamp model's misfit alone: over a flat lens with the beam's exponent
+  // online, parking 20 W's gamma ran from 2.25 to 2.77 (truth 2.21) as they went from half to all
+  // of the 40-keyframe window, and the scale shrank (README "Illuminator correction"). 0: off.
+  double min_exposure_varying_fraction = 0.0;
   double min_radius_span = 0.1;       // V is estimated when min_points / 2 points span this range of radii
   // The straightest continuation of V over t = r^2 beyond the observed radii (the 99th percentile
   // of the observations' radius; tracks seldom reach the image's corners): the second derivative

@@ -32,8 +32,10 @@ double inverse_depth_at(const LevelCamera& camera, const Eigen::Vector3d& Rx, co
 }  // namespace
 
 TraceStatus ImmaturePoint::trace(const LevelCamera& camera, const PyramidLevel& target, const SE3& T_target_host,
-                                 const AffineTransfer& affine, const TraceOptions& options) {
-  const Eigen::Vector3d Rx = T_target_host.rotation_matrix() * camera.unproject(pixel_);
+                                 const AffineTransfer& affine, const TraceOptions& options, const LampGeometry& lamp) {
+  const Eigen::Vector3d ray = camera.unproject(pixel_);
+  const Eigen::Matrix3d R = T_target_host.rotation_matrix();
+  const Eigen::Vector3d Rx = R * ray;
   const Eigen::Vector3d t = T_target_host.translation();
   const Eigen::Vector3d q_min = Rx + inverse_depth_min_ * t;
   if (q_min.z() <= 1e-6) return last_status_ = TraceStatus::OutOfBounds;
@@ -73,15 +75,23 @@ TraceStatus ImmaturePoint::trace(const LevelCamera& camera, const PyramidLevel& 
     return last_status_ = TraceStatus::BadCondition;
   }
 
+  // The host's brightness carried to the target at candidate `p`: the affine transfer, times
+  // the lamp's factor for the inverse depth that puts the point there.
+  auto transfer_scale = [&](const Eigen::Vector2d& p) {
+    if (!lamp.enabled) return affine.scale;
+    double rho = inverse_depth_at(camera, Rx, t, p, direction);
+    if (!std::isfinite(rho)) rho = 0.0;
+    return affine.scale * lamp_factor_value(ray, std::max(rho, 0.0), R, t, lamp);
+  };
   auto pattern_energy = [&](const Eigen::Vector2d& p) {
+    const double scale = transfer_scale(p);
     double e = 0.0;
     for (int i = 0; i < kPatternSize; ++i) {
       const auto& o = kPattern[static_cast<std::size_t>(i)];
       const double u = p.x() + o[0];
       const double v = p.y() + o[1];
       const double I = target.interpolate_intensity(static_cast<float>(u), static_cast<float>(v));
-      const double r =
-          I - affine.scale * (host_intensity_[static_cast<std::size_t>(i)] - affine.b_host) - affine.b_target;
+      const double r = I - scale * (host_intensity_[static_cast<std::size_t>(i)] - affine.b_host) - affine.b_target;
       const double hw = huber_weight(r, options.huber_threshold);
       e += hw * r * r * (2.0 - hw);
     }
@@ -119,14 +129,14 @@ TraceStatus ImmaturePoint::trace(const LevelCamera& camera, const PyramidLevel& 
     double g = 0.0;
     double e = 0.0;
     const Eigen::Vector2d p = p_min + offset * direction;
+    const double scale = transfer_scale(p);  // held over the step, as the window holds g without derivatives
     for (int i = 0; i < kPatternSize; ++i) {
       const auto& o = kPattern[static_cast<std::size_t>(i)];
       const double u = p.x() + o[0];
       const double v = p.y() + o[1];
       if (!camera.inside(u, v, 1.0)) return last_status_ = TraceStatus::OutOfBounds;
       const Eigen::Vector3f s = target.interpolate(static_cast<float>(u), static_cast<float>(v));
-      const double r =
-          s[0] - affine.scale * (host_intensity_[static_cast<std::size_t>(i)] - affine.b_host) - affine.b_target;
+      const double r = s[0] - scale * (host_intensity_[static_cast<std::size_t>(i)] - affine.b_host) - affine.b_target;
       const double hw = huber_weight(r, options.huber_threshold);
       const double J = s.tail<2>().cast<double>().dot(direction);
       H += hw * J * J;

@@ -118,7 +118,11 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
       "lamp", "odometry:\n  light_offset: [0.0, 0.02, 0.0]\n  apply_estimated_light_offset: true\n"
               "  lamp_factor_derivatives: false\n"
-              "  beam_corrected_weights: false\n"));
+              "  beam_corrected_weights: false\n"
+              "  lamp_in_traces: true\n"
+              "calibration:\n  min_exposure_varying_fraction: 0.4\n"));
+  EXPECT_TRUE(config.worker.pipeline.odometry.lamp_in_traces);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.min_exposure_varying_fraction, 0.4);
   EXPECT_FALSE(config.worker.pipeline.odometry.lamp_factor_derivatives);
   EXPECT_FALSE(config.worker.pipeline.odometry.beam_corrected_weights);
   EXPECT_TRUE(config.worker.pipeline.light_offset_configured);

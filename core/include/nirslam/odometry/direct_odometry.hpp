@@ -99,6 +99,10 @@ struct OdometryOptions {
   // weighting, as in frames corrected for the beam (LampGeometry::beam_corrected_weights).
   // Measured better with every calibration tried (README "Illuminator correction").
   bool beam_corrected_weights = true;
+  // The lamp's factor also in the immature points' epipolar search (ImmaturePoint::trace), at
+  // each candidate's inverse depth; else the search sees the lamp's brightening and beam as
+  // brightness change the frame pair's affine transfer does not hold.
+  bool lamp_in_traces = false;
 
   // Initialiser.
   double init_min_parallax_px = 6.0;    // rms translational flow at level 0 for a 640-wide image

@@ -31,9 +31,13 @@ class ImmaturePoint {
 public:
   ImmaturePoint(const Eigen::Vector2i& pixel, const PyramidLevel& host);
 
-  // Traces into `target` with the pose T_target_host and brightness transfer.
+  // Traces into `target` with the pose T_target_host and brightness transfer. With `lamp`
+  // enabled, each candidate's brightness transfer also carries the lamp's factor at the inverse
+  // depth that candidate means (photometric_residual.hpp), as the window's residuals do: without
+  // it the search matched host patches against targets whose brightness differs by the lamp's
+  // distance and beam ratios, which a global affine transfer cannot hold.
   TraceStatus trace(const LevelCamera& camera, const PyramidLevel& target, const SE3& T_target_host,
-                    const AffineTransfer& affine, const TraceOptions& options);
+                    const AffineTransfer& affine, const TraceOptions& options, const LampGeometry& lamp = {});
 
   const Eigen::Vector2d& pixel() const { return pixel_; }
   const std::array<float, kPatternSize>& host_intensity() const { return host_intensity_; }

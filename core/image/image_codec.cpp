@@ -10,6 +10,7 @@
 #include <new>
 #include <stdexcept>
 #include <string>
+#include <system_error>
 
 // jpeglib.h uses FILE and size_t without including their headers.
 #include <jpeglib.h>
@@ -379,6 +380,8 @@ cv::Mat decode_image(std::span<const std::uint8_t> bytes, ImageReadMode mode) {
 }
 
 cv::Mat read_image(const fs::path& file, ImageReadMode mode) {
+  // A folder opens as a stream on Linux and then reports a nonsense size.
+  if (std::error_code error; fs::is_directory(file, error)) throw InputError(file, "is a folder, not an image file");
   std::ifstream in(file, std::ios::binary | std::ios::ate);
   if (!in) throw InputError(file, fs::exists(file) ? "cannot open image file" : "image file is missing");
   const std::streamoff size = in.tellg();

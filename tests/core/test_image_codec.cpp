@@ -196,6 +196,12 @@ TEST(ImageCodec, FileErrorsNameTheFile) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("empty.png: image file is empty"), std::string::npos) << e.what();
   }
+  try {
+    read_image(dir);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("is a folder"), std::string::npos) << e.what();
+  }
   const fs::path cut = dir / "cut.jpg";
   const std::vector<std::uint8_t> jpeg = encode_jpeg(codec_smooth_image(32, 32, 1), 90);
   codec_write_bytes(cut, {jpeg.begin(), jpeg.begin() + static_cast<std::ptrdiff_t>(jpeg.size() / 2)});

@@ -47,9 +47,12 @@ deb=${debs[0]}
 dpkg-deb --field "$deb" Package Version Architecture Section Maintainer Installed-Size Depends Suggests
 depends=$(dpkg-deb --field "$deb" Depends)
 # From dpkg-shlibdeps (the linked libraries) and the runtime-only Mesa EGL vendor and DRI drivers.
-for dependency in libc6 libstdc++6 libopencv-core libglfw3 libegl1 libopengl0 libyaml-cpp libzip4 libegl-mesa0 libgl1-mesa-dri; do
+for dependency in libc6 libstdc++6 libopencv-core libglfw3 libegl1 libopengl0 libyaml-cpp libzip4 libpng16-16 \
+  libjpeg62-turbo libegl-mesa0 libgl1-mesa-dri; do
   [[ $depends == *"$dependency"* ]] || fail "Depends lacks $dependency: $depends"
 done
+# Image files go through libpng / libjpeg: OpenCV's imgcodecs would bring GDAL and ~118 libraries.
+[[ $depends != *imgcodecs* && $depends != *gdal* ]] || fail "Depends pulls in imgcodecs or GDAL: $depends"
 
 step "Install: apt-get install $deb"
 if is_installed; then "${sudo_cmd[@]}" apt-get remove -y -qq nirslam > /dev/null; fi

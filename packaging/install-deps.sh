@@ -8,7 +8,7 @@ packages=(
   build-essential cmake pkg-config git python3
   # core
   libeigen3-dev libopencv-dev libceres-dev libv4l-dev libyaml-cpp-dev nlohmann-json3-dev
-  libspdlog-dev libcli11-dev libzip-dev
+  libspdlog-dev libcli11-dev libzip-dev libpng-dev libjpeg-dev
   # ui and front ends
   libimgui-dev libstb-dev libfreetype-dev libglfw3-dev libegl-dev libgl-dev libegl-mesa0
   libgl1-mesa-dri

@@ -10,11 +10,11 @@
 
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <spdlog/spdlog.h>
 
 #include "commands/subcommand.hpp"
 #include "nirslam/common/error.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/image/image_files.hpp"
 #include "nirslam/photometric/exposure_sweep_calibration.hpp"
 #include "nirslam/photometric/response_model.hpp"
@@ -83,8 +83,7 @@ std::vector<PowerSweepImage> read_power_sweep(const fs::path& folder, int viewpo
 // The green channel of a colour file (a pixel whose red or blue channel clips has a grey value
 // no response explains); grey files are used as they are.
 cv::Mat read_green_or_grey(const fs::path& file) {
-  const cv::Mat decoded = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-  if (decoded.empty()) throw InputError(file, "cannot read or decode the image");
+  const cv::Mat decoded = read_image(file);
   if (decoded.depth() != CV_8U) throw InputError(file, "--green needs 8-bit images");
   if (decoded.channels() == 1) return decoded;
   if (decoded.channels() < 3) throw InputError(file, "unsupported channel count");

@@ -62,7 +62,7 @@ void add_entropy_command(CLI::App& parent, CommandAction& action) {
       "entropy",
       "Print each image's information entropy (bits, paper Eq. 2-1, 256 bins: the more, the more usable "
       "detail) and its shares of saturated and black pixels");
-  cmd->add_option("images", options->images, "Image files (PNG, JPEG, PGM, TIFF; 8 or 16 bit)")->required();
+  cmd->add_option("images", options->images, "Image files (PNG, JPEG, binary PGM/PPM; 8 or 16 bit)")->required();
   cmd->add_option("--bit-depth", options->bit_depth,
                   "Significant bits of 16-bit files (10 for Y10, 12 for Y12); default: 16")
       ->check(CLI::Range(9, 16));

@@ -7,11 +7,11 @@
 #include <vector>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
 #include "frontends/egl_context.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "ui/application.hpp"
 #include "ui/gl/gl.hpp"
 #include "ui/gl/shader.hpp"
@@ -31,13 +31,11 @@ void write_png_rgba(const std::filesystem::path& path, const cv::Mat& rgba) {
   check_screenshot_folder(path);
   cv::Mat bgr;
   cv::cvtColor(rgba, bgr, cv::COLOR_RGBA2BGR);
-  bool written = false;
   try {
-    written = cv::imwrite(path.string(), bgr, {cv::IMWRITE_PNG_COMPRESSION, 9});
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error(fmt::format("cannot write screenshot {}: {}", path.string(), e.what()));
+    write_image(path, bgr, ImageWriteOptions{.png = {.compression_level = 9}});
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("cannot write screenshot: {}", e.what()));  // names the file
   }
-  if (!written) throw std::runtime_error(fmt::format("cannot write screenshot {}", path.string()));
 }
 
 FrameTimeSummary summarise_frame_times(std::vector<double> frame_ms) {

@@ -6,10 +6,10 @@
 #include <stdexcept>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/capture/emulated_uvc.hpp"
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam {
 namespace {
@@ -112,8 +112,7 @@ std::size_t draw_emulated_pattern(const EmulatedFrameRequest& request, bool side
     case PixelFormat::Mjpg: {
       cv::Mat grey;
       fraction.convertTo(grey, CV_8UC1, 255.0);
-      std::vector<std::uint8_t> jpeg;
-      cv::imencode(".jpg", grey, jpeg, {cv::IMWRITE_JPEG_QUALITY, 90});
+      const std::vector<std::uint8_t> jpeg = encode_jpeg(grey, 90);
       if (jpeg.size() > buffer.size()) throw std::length_error("emulated MJPG frame larger than its buffer");
       std::memcpy(buffer.data(), jpeg.data(), jpeg.size());
       return jpeg.size();

@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam {
 
@@ -114,10 +114,13 @@ cv::Mat convert_buffer(const BufferLayout& layout, std::span<const std::uint8_t>
     throw std::invalid_argument("pixel conversion: empty frame size " + describe(layout));
   if (layout.format == PixelFormat::Mjpg) {
     if (bytes.empty()) throw std::invalid_argument("pixel conversion: empty MJPG frame (" + describe(layout) + ")");
-    const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<std::uint8_t*>(bytes.data()));
-    cv::Mat decoded = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE);
-    if (decoded.empty())
-      throw std::invalid_argument("pixel conversion: MJPG frame of " + std::to_string(bytes.size()) + " bytes does not decode");
+    cv::Mat decoded;
+    try {
+      decoded = decode_image(bytes, ImageReadMode::Grey);
+    } catch (const std::runtime_error& e) {
+      throw std::invalid_argument("pixel conversion: MJPG frame of " + std::to_string(bytes.size()) +
+                                  " bytes does not decode (" + e.what() + ")");
+    }
     if (decoded.cols != layout.width || decoded.rows != layout.height)
       throw std::invalid_argument("pixel conversion: MJPG frame decodes to " + std::to_string(decoded.cols) + "x" +
                                   std::to_string(decoded.rows) + ", negotiated " + describe(layout));

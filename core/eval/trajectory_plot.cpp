@@ -6,11 +6,11 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/common/error.hpp"
 #include "nirslam/eval/evaluation.hpp"
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam {
 
@@ -290,14 +290,8 @@ cv::Mat render_evaluation_heat_map(const std::vector<Eigen::Vector3d>& ground_tr
 }
 
 void write_png(const std::filesystem::path& file, const cv::Mat& image) {
-  bool written = false;
-  try {
-    // Plots are flat colours on white: the slowest zlib level costs milliseconds and halves the file.
-    written = cv::imwrite(file.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 9});
-  } catch (const cv::Exception& e) {
-    throw InputError(file, std::string("cannot write PNG: ") + e.what());
-  }
-  if (!written) throw InputError(file, "cannot write PNG (does the folder exist, is it writable?)");
+  // Plots are flat colours on white: the slowest zlib level costs milliseconds and halves the file.
+  write_image(file, image, ImageWriteOptions{.png = {.compression_level = 9}});
 }
 
 }  // namespace nirslam

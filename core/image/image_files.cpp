@@ -8,12 +8,12 @@
 #include <system_error>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
 #include "nirslam/common/error.hpp"
 #include "nirslam/common/text_fields.hpp"
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam {
 
@@ -60,8 +60,7 @@ bool natural_less(std::string_view a, std::string_view b) {
 }
 
 bool is_image_file_name(const fs::path& name) {
-  static constexpr std::array<std::string_view, 9> kExtensions = {
-      ".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".pnm", ".bmp", ".tif", ".tiff"};
+  static constexpr std::array<std::string_view, 6> kExtensions = {".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".pnm"};
   const std::string extension = lowercase(name.extension().string());
   return std::find(kExtensions.begin(), kExtensions.end(), extension) != kExtensions.end();
 }
@@ -102,11 +101,10 @@ GreyImageDecoder::Image GreyImageDecoder::decode(const std::vector<unsigned char
   if (bytes.empty()) throw InputError(name, "image file is empty");
   cv::Mat decoded;
   try {
-    decoded = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& error) {
+    decoded = decode_image(bytes);
+  } catch (const std::runtime_error& error) {
     throw InputError(name, std::string("cannot decode image: ") + error.what());
   }
-  if (decoded.empty()) throw InputError(name, "cannot decode image (corrupt or not an image)");
   return to_grey(std::move(decoded), name);
 }
 

@@ -11,10 +11,11 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/core.hpp>
 
 #include "nirslam/common/error.hpp"
 #include "nirslam/common/text_fields.hpp"
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam {
 
@@ -264,20 +265,12 @@ void write_vignette_png(const std::filesystem::path& file, const cv::Mat& vignet
   if (!(max_value > 0.0)) throw std::invalid_argument("write_vignette_png: the map has no positive value");
   cv::Mat image;
   vignette.convertTo(image, CV_16UC1, 65535.0 / max_value);
-  errno = 0;
-  bool written = false;
-  try {
-    written = cv::imwrite(file.string(), image);
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error(file.string() + ": cannot write (" + e.what() + ")");
-  }
-  if (!written) throw_write_error(file, "cannot write", errno);
+  write_image(file, image);
 }
 
 cv::Mat read_vignette_png(const std::filesystem::path& file) {
   if (!std::filesystem::exists(file)) throw InputError(file, "file is missing");
-  const cv::Mat image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-  if (image.empty()) throw InputError(file, "cannot decode the vignette image");
+  const cv::Mat image = read_image(file);
   if (image.channels() != 1) throw InputError(file, "the vignette image must be grey, not colour");
   if (image.depth() != CV_8U && image.depth() != CV_16U)
     throw InputError(file, "the vignette image must be 8- or 16-bit");

@@ -6,13 +6,13 @@
 #include <fstream>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <spdlog/spdlog.h>
 
 #include "nirslam/common/error.hpp"
 #include "nirslam/eval/evaluation.hpp"
 #include "nirslam/eval/trajectory.hpp"
 #include "nirslam/eval/trajectory_plot.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/photometric/response_model.hpp"
 #include "nirslam/session/odometry_output.hpp"
 #include "nirslam/session/session_format.hpp"
@@ -183,10 +183,7 @@ ExportSummary export_session(const fs::path& session, const fs::path& out_argume
     if (fs::path(e.file).extension() == ".png") {
       copy_session_file(from, to);
     } else {
-      const cv::Mat image = cv::imread(from.string(), cv::IMREAD_UNCHANGED);
-      if (image.empty()) throw InputError(from, "cannot read the recorded frame");
-      if (!cv::imwrite(to.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 1}))
-        throw std::runtime_error(to.string() + ": cannot write (disk full?)");
+      write_image(to, read_image(from), ImageWriteOptions{.png = {.compression_level = 1}});
     }
     times += e.exposure_ms ? fmt::format("{} {:.9f} {:.6f}\n", id, e.timestamp_s, *e.exposure_ms)
                            : fmt::format("{} {:.9f}\n", id, e.timestamp_s);

@@ -8,11 +8,11 @@
 #include <system_error>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <spdlog/spdlog.h>
 
 #include "nirslam/camera/camera_model.hpp"
 #include "nirslam/common/error.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/session/metrics_csv_writer.hpp"
 #include "nirslam/worker/snapshot.hpp"
 
@@ -24,14 +24,13 @@ constexpr std::size_t kReserveBytes = 64 * 1024;
 
 std::vector<unsigned char> encode_frame(const cv::Mat& image, FrameFileFormat format, int png_compression,
                                         bool huffman_only) {
-  std::vector<unsigned char> bytes;
-  const int strategy = huffman_only ? cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY : cv::IMWRITE_PNG_STRATEGY_DEFAULT;
-  const bool ok = format == FrameFileFormat::Png
-                      ? cv::imencode(".png", image, bytes,
-                                     {cv::IMWRITE_PNG_COMPRESSION, png_compression, cv::IMWRITE_PNG_STRATEGY, strategy})
-                      : cv::imencode(".pgm", image, bytes, {cv::IMWRITE_PXM_BINARY, 1});
-  if (!ok) throw std::runtime_error("cannot encode the frame as " + std::string(to_string(format)));
-  return bytes;
+  try {
+    if (format == FrameFileFormat::Pgm) return encode_pnm(image);
+    return encode_png(image, {.compression_level = png_compression,
+                              .strategy = huffman_only ? PngStrategy::HuffmanOnly : PngStrategy::Default});
+  } catch (const std::exception& e) {
+    throw std::runtime_error("cannot encode the frame as " + std::string(to_string(format)) + " (" + e.what() + ")");
+  }
 }
 
 bool disk_full(const std::system_error& e) { return e.code().value() == ENOSPC || e.code().value() == EDQUOT; }

@@ -6,12 +6,13 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <spdlog/spdlog.h>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/session/session_format.hpp"
 
 namespace nirslam {
@@ -92,7 +93,12 @@ RecoveryReport recover_session(const fs::path& folder) {
   cut_after_last_line_end(folder / session_files::kMetrics);
 
   if (!kept.empty() && metadata.width == 0) {
-    const cv::Mat first = cv::imread((folder / kept.front().file).string(), cv::IMREAD_UNCHANGED);
+    // A damaged first frame leaves the size unknown (0), as a missing metadata file does.
+    cv::Mat first;
+    try {
+      first = read_image(folder / kept.front().file);
+    } catch (const std::runtime_error&) {
+    }
     metadata.width = first.cols;
     metadata.height = first.rows;
     metadata.bit_depth = kept.front().bit_depth;

@@ -3,10 +3,10 @@
 #include <stdexcept>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "nirslam/camera/camera_io.hpp"
 #include "nirslam/common/error.hpp"
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam {
 namespace fs = std::filesystem;
@@ -36,8 +36,7 @@ std::optional<Frame> SessionSource::next() {
   const JournalEntry& entry = journal_[next_];
   const fs::path file = folder_ / entry.file;
   Frame frame;
-  frame.image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-  if (frame.image.empty()) throw InputError(file, "cannot read the recorded frame (missing or damaged)");
+  frame.image = read_image(file);  // InputError naming the file: missing, empty or damaged
   const int expected_type = entry.bit_depth > 8 ? CV_16UC1 : CV_8UC1;
   if (frame.image.type() != expected_type)
     throw InputError(file, fmt::format("expected a {}-bit grey image as the journal says", entry.bit_depth > 8 ? 16 : 8));

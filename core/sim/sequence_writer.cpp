@@ -13,9 +13,10 @@
 #include <string>
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/fmt/fmt.h>
+
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam {
 
@@ -50,20 +51,6 @@ private:
   fs::path path_;
   std::ofstream out_;
 };
-
-void write_image(const fs::path& file, const cv::Mat& image, const std::vector<int>& params = {}) {
-  errno = 0;
-  bool ok = false;
-  try {
-    ok = cv::imwrite(file.string(), image, params);
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error(file.string() + ": cannot write image (" + e.what() + ")");
-  }
-  if (!ok) write_failed(file, "cannot write image", errno);
-  // imwrite does not always report a short write: check the file is there and not empty.
-  std::error_code ec;
-  if (fs::file_size(file, ec) == 0 || ec) write_failed(file, "cannot write image", errno ? errno : ENOSPC);
-}
 
 void create_folder(const fs::path& folder) {
   std::error_code error;
@@ -192,7 +179,7 @@ void write_sheet(const SimulationOutput& output, const std::vector<cv::Mat>& fra
   if (output.contact_sheet->has_parent_path()) create_folder(output.contact_sheet->parent_path());
   write_image(*output.contact_sheet,
               make_contact_sheet(frames, labels, output.contact_sheet_columns, output.contact_sheet_tile_width),
-              {cv::IMWRITE_PNG_COMPRESSION, 9});
+              ImageWriteOptions{.png = {.compression_level = 9}});
 }
 
 // The folders and text files both writers produce: images/ (and depth/), the calibration files,

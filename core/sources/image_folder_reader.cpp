@@ -11,7 +11,6 @@
 #include <system_error>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
@@ -33,7 +32,7 @@ ImageFolderReader::ImageFolderReader(const fs::path& folder, ImageFolderOptions 
   if (!fs::is_directory(folder)) throw InputError(folder, "is not a folder");
   files_ = list_image_files(folder);
   if (files_.empty())
-    throw InputError(folder, "no image files (png, jpg, pgm, bmp, tif) in the folder");
+    throw InputError(folder, "no image files (png, jpg, pgm, ppm) in the folder");
 
   if (options.camera_file) {
     calibration_ = read_dso_camera_file(*options.camera_file);

@@ -9,9 +9,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "app/cli_runner.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/photometric/response_model.hpp"
 
 namespace nirslam::testing {
@@ -48,7 +48,7 @@ TEST(CalibrateSweepCommand, BlackImagesFailWithReasonAndMissingTimeNamesFile) {
   const auto images = dir / "images";
   std::filesystem::create_directories(images);
   for (const char* name : {"a.png", "b.png", "c.png"})
-    cv::imwrite((images / name).string(), cv::Mat(48, 64, CV_8UC1, cv::Scalar(0)));
+    nirslam::write_image(images / name, cv::Mat(48, 64, CV_8UC1, cv::Scalar(0)));
   {
     std::ofstream times(dir / "times.txt");
     times << "a: 1\nb: 1/2\nc: 1/4\n";

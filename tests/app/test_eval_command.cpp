@@ -8,11 +8,11 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "app/cli_runner.hpp"
 #include "core/test_eval_fixtures.hpp"
 #include "nirslam/eval/trajectory.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/sources/euroc_reader.hpp"
 #include "text_contains.hpp"
 
@@ -76,7 +76,7 @@ TEST_F(EvalCommand, PrintsTheTableAndWritesJsonAndAHeatMap) {
   EXPECT_NEAR(json["ate_m"]["rmse"].get<double>(), 0.02, 0.002);  // the injected noise comes back
   EXPECT_NEAR(json["alignment"]["scale"].get<double>(), 0.37, 0.002);
 
-  const cv::Mat image = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat image = nirslam::read_image(png, nirslam::ImageReadMode::Bgr);
   ASSERT_FALSE(image.empty()) << r.output;
   EXPECT_EQ(image.cols, 1200);
   EXPECT_EQ(image.rows, 900);
@@ -93,7 +93,7 @@ TEST_F(EvalCommand, Se3AlignFirstAndPlotSizeOptions) {
   EXPECT_TRUE(contains(r.output, "SE(3) on the first 100 of 600 pairs, scale fixed at 1")) << r.output;
   EXPECT_TRUE(contains(r.output, "the estimate is 170.")) << r.output;  // 1 / 0.37 - 1 = +170 %
   EXPECT_TRUE(contains(r.output, "RPE 2 m trans [%]")) << r.output;
-  const cv::Mat image = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat image = nirslam::read_image(png, nirslam::ImageReadMode::Bgr);
   EXPECT_EQ(image.cols, 800);
   EXPECT_EQ(image.rows, 600);
   EXPECT_NE(run_command(nirslam("eval " + quoted(files.estimate) + " " + quoted(files.ground_truth) +

@@ -4,9 +4,9 @@
 #include <string>
 
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "app/cli_runner.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/sources/tum_monovo_reader.hpp"
 
 namespace nirslam::testing {
@@ -73,7 +73,7 @@ TEST(ExportCommand, TheReportOpensInHeadlessChromiumAndShowsThePlots) {
       (dir / "profile").string() + "' --screenshot='" + screenshot.string() +
       "' --window-size=1200,1600 'file://" + (out / "report.html").string() + "'");
   ASSERT_TRUE(fs::exists(screenshot)) << browser.output;
-  const cv::Mat page = cv::imread(screenshot.string(), cv::IMREAD_COLOR);
+  const cv::Mat page = nirslam::read_image(screenshot, nirslam::ImageReadMode::Bgr);
   ASSERT_EQ(page.cols, 1200);
   ASSERT_EQ(page.rows, 1600);
   int page_background = 0, plot_white = 0, coloured = 0;

@@ -1,13 +1,14 @@
 #include <cstdlib>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 #include <utility>
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "app/cli_runner.hpp"
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam::testing {
 namespace {
@@ -26,7 +27,7 @@ TEST(GuiCommand, HeadlessScreenshotShowsTheWholeWindow) {
       run_command(nirslam("gui --headless --frames 20 --size 960x600 --screenshot '" + shot.string() + "'"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("Screenshot written to " + shot.string()), std::string::npos) << r.output;
-  const cv::Mat image = cv::imread(shot.string(), cv::IMREAD_GRAYSCALE);
+  const cv::Mat image = nirslam::read_image(shot, nirslam::ImageReadMode::Grey);
   ASSERT_FALSE(image.empty());
   EXPECT_EQ(image.cols, 960);
   EXPECT_EQ(image.rows, 600);
@@ -46,8 +47,12 @@ TEST(GuiCommand, HeadlessOnRealEurocData) {
 // the strip under the views, where the illumination tab has none.
 TEST(GuiCommand, PhotometricTabShowsTheCalibrationCurves) {
   const auto orange_in_strip = [](const fs::path& shot) {
-    const cv::Mat image = cv::imread(shot.string(), cv::IMREAD_COLOR);  // BGR
-    if (image.empty()) return -1;
+    cv::Mat image;
+    try {
+      image = nirslam::read_image(shot, nirslam::ImageReadMode::Bgr);
+    } catch (const std::runtime_error&) {
+      return -1;
+    }
     int count = 0;
     for (int y = image.rows * 2 / 3; y < image.rows; ++y)
       for (int x = 0; x < image.cols * 6 / 10; ++x) {
@@ -104,7 +109,7 @@ TEST(DefaultCommand, WithoutADisplayRendersHeadlessAndSaysWhere) {
       run_command("cd '" + dir.string() + "' && env -u DISPLAY -u WAYLAND_DISPLAY " + nirslam(""));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("No display"), std::string::npos) << r.output;
-  const cv::Mat image = cv::imread((dir / "nirslam-demo.png").string(), cv::IMREAD_GRAYSCALE);
+  const cv::Mat image = nirslam::read_image(dir / "nirslam-demo.png", nirslam::ImageReadMode::Grey);
   ASSERT_FALSE(image.empty()) << r.output;
   EXPECT_EQ(image.cols, 1280);
   EXPECT_EQ(image.rows, 800);

@@ -5,10 +5,10 @@
 #include <opencv2/core.hpp>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/features2d.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/illumination/advisor.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/quality/frame_metrics.hpp"
 #include "nirslam/quality/image_quality.hpp"
 #include "nirslam/sources/demo_source.hpp"
@@ -34,7 +34,11 @@ BENCHMARK(BM_MeasureQuality16Bit);
 // A real 640x480 frame (ViSP's textured cube, hand-held): natural statistics for FAST. Falls back to
 // a demo frame when the Debian package is not installed.
 cv::Mat real_vga_frame() {
-  cv::Mat image = cv::imread("/usr/share/visp-images-data/ViSP-images/mbt/cube/image0000.pgm", cv::IMREAD_GRAYSCALE);
+  cv::Mat image;
+  try {
+    image = nirslam::read_image("/usr/share/visp-images-data/ViSP-images/mbt/cube/image0000.pgm", nirslam::ImageReadMode::Grey);
+  } catch (const std::runtime_error&) {
+  }
   if (image.empty() || image.size() != cv::Size(640, 480)) {
     nirslam::DemoOptions options;
     image = nirslam::make_demo_source(options)->next()->image;

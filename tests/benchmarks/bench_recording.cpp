@@ -8,8 +8,8 @@
 
 #include <benchmark/benchmark.h>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/session/session_recorder.hpp"
 #include "nirslam/sources/demo_source.hpp"
 
@@ -46,15 +46,12 @@ const std::vector<nirslam::Frame>& frames(int bit_depth) {
 void BM_EncodeFrame(benchmark::State& state) {
   const auto& input = frames(static_cast<int>(state.range(0)));
   const int level = static_cast<int>(state.range(1));
-  const int strategy = state.range(2) != 0 ? cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY : cv::IMWRITE_PNG_STRATEGY_DEFAULT;
+  const nirslam::PngStrategy strategy = state.range(2) != 0 ? nirslam::PngStrategy::HuffmanOnly : nirslam::PngStrategy::Default;
   std::size_t i = 0, bytes = 0;
   std::vector<unsigned char> encoded;
   for (auto _ : state) {
     const cv::Mat& image = input[i++ % input.size()].image;
-    if (level < 0)
-      cv::imencode(".pgm", image, encoded, {cv::IMWRITE_PXM_BINARY, 1});
-    else
-      cv::imencode(".png", image, encoded, {cv::IMWRITE_PNG_COMPRESSION, level, cv::IMWRITE_PNG_STRATEGY, strategy});
+    encoded = level < 0 ? nirslam::encode_pnm(image) : nirslam::encode_png(image, {.compression_level = level, .strategy = strategy});
     bytes += encoded.size();
   }
   state.SetItemsProcessed(state.iterations());

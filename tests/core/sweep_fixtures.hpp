@@ -13,8 +13,9 @@
 #include <vector>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam::testing {
 
@@ -59,7 +60,7 @@ inline void write_sweep_folder(const std::filesystem::path& folder, const std::v
   for (const double power : powers_w) {
     for (int k = 0; k < frames_per_power; ++k, ++index) {
       const std::string name = "images/" + std::to_string(index) + ".png";
-      cv::imwrite((folder / name).string(), sweep_image(albedo, power, full_power_w, 100u + static_cast<unsigned>(index)));
+      nirslam::write_image(folder / name, sweep_image(albedo, power, full_power_w, 100u + static_cast<unsigned>(index)));
       csv << name << ",10.0," << power << (scene.empty() ? "" : "," + scene) << "\n";
     }
   }

@@ -11,12 +11,12 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <zip.h>
 
 #include "nirslam/camera/camera_model.hpp"
 #include "nirslam/common/error.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/sources/euroc_reader.hpp"
 #include "nirslam/sources/image_folder_reader.hpp"
 #include "nirslam/sources/tum_monovo_reader.hpp"
@@ -57,9 +57,9 @@ cv::Mat random_image(int width, int height, int type, unsigned seed) {
   return image;
 }
 
-void write_image(const fs::path& file, const cv::Mat& image) {
+void save_dataset_image(const fs::path& file, const cv::Mat& image) {
   fs::create_directories(file.parent_path());
-  ASSERT_TRUE(cv::imwrite(file.string(), image)) << file;
+  ASSERT_NO_THROW(nirslam::write_image(file, image)) << file;
 }
 
 // images.zip holding `images` as PNG members named `names`, written with libzip.
@@ -70,7 +70,7 @@ void write_zip(const fs::path& file, const std::vector<std::string>& names,
   ASSERT_NE(archive, nullptr) << "zip_open error " << error;
   std::vector<std::vector<unsigned char>> encoded(images.size());  // alive until zip_close
   for (std::size_t i = 0; i < images.size(); ++i) {
-    ASSERT_TRUE(cv::imencode(".png", images[i], encoded[i]));
+    ASSERT_NO_THROW(encoded[i] = encode_png(images[i]));
     zip_source_t* source = zip_source_buffer(archive, encoded[i].data(), encoded[i].size(), 0);
     ASSERT_NE(source, nullptr);
     ASSERT_GE(zip_file_add(archive, names[i].c_str(), source, ZIP_FL_OVERWRITE), 0);
@@ -113,7 +113,7 @@ protected:
       std::snprintf(name, sizeof name, "%05d.png", i);
       names.emplace_back(name);
       images.push_back(random_image(64, 48, type, 100u + static_cast<unsigned>(i)));
-      if (!zip) write_image(root_ / "images" / name, images.back());
+      if (!zip) save_dataset_image(root_ / "images" / name, images.back());
       times += std::string(name, 5) + " " + std::to_string(1000.0 + 0.05 * i) + " " +
                std::to_string(5.0 + i) + "\n";
     }
@@ -127,7 +127,7 @@ protected:
 TEST_F(TumMonoVo, ReadsFramesWithTimesExposuresAndCamera) {
   const std::vector<cv::Mat> images = make_sequence(5, CV_8UC1, false);
   write_text(root_ / "pcalib.txt", "0 1 2\n");
-  write_image(root_ / "vignette.png", cv::Mat(48, 64, CV_16UC1, cv::Scalar(60000)));
+  save_dataset_image(root_ / "vignette.png", cv::Mat(48, 64, CV_16UC1, cv::Scalar(60000)));
   TumMonoVoReader reader(root_);
   EXPECT_EQ(reader.info().kind, "tum");
   EXPECT_EQ(reader.info().frame_count, 5u);
@@ -224,8 +224,7 @@ TEST_F(TumMonoVo, CorruptZipMemberNamesTheMember) {
   int error = 0;
   zip_t* archive = zip_open((root_ / "images.zip").c_str(), ZIP_CREATE | ZIP_TRUNCATE, &error);
   ASSERT_NE(archive, nullptr);
-  std::vector<unsigned char> good;
-  cv::imencode(".png", random_image(64, 48, CV_8UC1, 1), good);
+  const std::vector<unsigned char> good = encode_png(random_image(64, 48, CV_8UC1, 1));
   const std::string garbage = "definitely not a PNG";
   zip_file_add(archive, "00000.png", zip_source_buffer(archive, good.data(), good.size(), 0), 0);
   zip_file_add(archive, "00001.png",
@@ -245,7 +244,7 @@ TEST_F(TumMonoVo, CorruptZipMemberNamesTheMember) {
 TEST_F(TumMonoVo, ColourImagesBecomeGrey) {
   make_sequence(2, CV_8UC1, false);
   const cv::Mat colour = random_image(64, 48, CV_8UC3, 5);
-  write_image(root_ / "images" / "00001.png", colour);
+  save_dataset_image(root_ / "images" / "00001.png", colour);
   TumMonoVoReader reader(root_);
   reader.next();
   const std::optional<Frame> frame = reader.next();
@@ -323,7 +322,7 @@ TEST_F(TumMonoVo, IdsMustMatchNumberedImages) {
 
 TEST_F(TumMonoVo, ImageOfWrongSizeNamesTheFile) {
   make_sequence(3, CV_8UC1, false);
-  write_image(root_ / "images" / "00001.png", random_image(48, 64, CV_8UC1, 9));
+  save_dataset_image(root_ / "images" / "00001.png", random_image(48, 64, CV_8UC1, 9));
   {
     TumMonoVoReader reader(root_);
     reader.next();
@@ -342,7 +341,7 @@ TEST_F(TumMonoVo, ImageOfWrongSizeNamesTheFile) {
 
 TEST_F(TumMonoVo, MixedDepthsAreAnError) {
   make_sequence(2, CV_8UC1, false);
-  write_image(root_ / "images" / "00001.png", random_image(64, 48, CV_16UC1, 3));
+  save_dataset_image(root_ / "images" / "00001.png", random_image(64, 48, CV_16UC1, 3));
   TumMonoVoReader reader(root_);
   reader.next();
   const std::string message = input_error([&] { reader.next(); });
@@ -437,7 +436,7 @@ TEST(Euroc, ReadsTheRealMicroSequence) {
     previous = frame->timestamp_s;
     if (count == 0 || count == 94) {
       const cv::Mat direct =
-          cv::imread((kEurocMicro / "mav0/cam0/data" / rows[count].second).string(), cv::IMREAD_UNCHANGED);
+          nirslam::read_image(kEurocMicro / "mav0/cam0/data" / rows[count].second);
       EXPECT_TRUE(same_pixels(frame->image, direct));
     }
     ++count;
@@ -485,7 +484,7 @@ protected:
   void make(const std::string& csv) {
     const fs::path cam = root_ / "mav0" / "cam0";
     for (const char* name : {"100.png", "200.png", "300.png"})
-      write_image(cam / "data" / name, random_image(32, 24, CV_8UC1, 4));
+      save_dataset_image(cam / "data" / name, random_image(32, 24, CV_8UC1, 4));
     write_text(cam / "data.csv", csv);
   }
 };
@@ -555,7 +554,7 @@ TEST_F(ImageFolder, NaturalOrderAndNominalRate) {
   std::vector<cv::Mat> images;
   for (std::size_t i = 0; i < names.size(); ++i) {
     images.push_back(random_image(40, 30, CV_8UC1, 50u + static_cast<unsigned>(i)));
-    write_image(root_ / names[i], images.back());
+    save_dataset_image(root_ / names[i], images.back());
   }
   write_text(root_ / "notes.md", "not an image");
   fs::create_directories(root_ / "sub.png");  // a folder, even with an image-like name
@@ -600,7 +599,7 @@ TEST_F(ImageFolder, TumStyleTimesFile) {
     std::string name = "f";
     name += std::to_string(i);
     name += ".png";
-    write_image(root_ / name, random_image(40, 30, CV_8UC1, 1));
+    save_dataset_image(root_ / name, random_image(40, 30, CV_8UC1, 1));
   }
   write_text(root_ / "times.txt", "0 5.0 2.5\n1 5.5 3.0\n2 6.0\n");
   ImageFolderReader reader(root_);
@@ -619,7 +618,7 @@ TEST_F(ImageFolder, TumStyleTimesFile) {
 
 TEST_F(ImageFolder, FileNameTimesFile) {
   for (const char* name : {"b2.png", "b10.png", "b1.png"})
-    write_image(root_ / name, random_image(40, 30, CV_8UC1, 1));
+    save_dataset_image(root_ / name, random_image(40, 30, CV_8UC1, 1));
   ImageFolderOptions options;
   options.times_file = root_ / "stamps.txt";
   write_text(root_ / "stamps.txt", "b10.png 3.0\nb1.png 1.0\nb2.png 2.0\n");
@@ -642,7 +641,7 @@ TEST_F(ImageFolder, FileNameTimesFile) {
 }
 
 TEST_F(ImageFolder, CameraFileBesideTheImagesChecksTheirSize) {
-  write_image(root_ / "a.png", random_image(40, 30, CV_8UC1, 1));
+  save_dataset_image(root_ / "a.png", random_image(40, 30, CV_8UC1, 1));
   write_text(root_ / "camera.txt", "Pinhole 50 50 19.5 14.5 0\n40 30\nnone\n40 30\n");
   ImageFolderReader reader(root_);
   ASSERT_NE(reader.camera(), nullptr);

@@ -5,13 +5,13 @@
 #include <string>
 
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/test_eval_fixtures.hpp"
 #include "nirslam/common/error.hpp"
 #include "nirslam/eval/evaluation.hpp"
 #include "nirslam/eval/trajectory_plot.hpp"
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam {
 namespace {
@@ -75,7 +75,7 @@ TEST_F(ErrorHeatMap, WritesAReadablePngOfTheRequestedSizeWithColourAlongThePath)
   const fs::path file = root_ / "heat.png";
   write_png(file, image);
 
-  const cv::Mat back = cv::imread(file.string(), cv::IMREAD_COLOR);
+  const cv::Mat back = nirslam::read_image(file, nirslam::ImageReadMode::Bgr);
   ASSERT_FALSE(back.empty());
   EXPECT_EQ(back.cols, 1000);
   EXPECT_EQ(back.rows, 760);

@@ -11,10 +11,10 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/image/image_files.hpp"
 #include "nirslam/photometric/exposure_sweep_calibration.hpp"
 
@@ -149,8 +149,12 @@ CanonStack load_canon_stack() {
   if (!fs::exists(dir / "shutter.txt")) return stack;
   stack.times = read_exposure_times(dir / "shutter.txt");
   for (const auto& t : stack.times) {
-    const cv::Mat colour = cv::imread((dir / (t.name + ".jpg")).string(), cv::IMREAD_COLOR);
-    if (colour.empty()) return {};
+    cv::Mat colour;
+    try {
+      colour = nirslam::read_image(dir / (t.name + ".jpg"), nirslam::ImageReadMode::Bgr);
+    } catch (const std::runtime_error&) {
+      return {};
+    }
     cv::Mat green, half;
     cv::extractChannel(colour, green, 1);
     cv::resize(green, half, cv::Size(), 0.5, 0.5, cv::INTER_AREA);

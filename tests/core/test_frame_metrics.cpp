@@ -10,8 +10,8 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
-#include <opencv2/imgcodecs.hpp>
 
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/quality/frame_metrics.hpp"
 
 namespace nirslam {
@@ -27,7 +27,7 @@ std::vector<fs::path> real_frames() {
 }
 
 cv::Mat read(const fs::path& file) {
-  cv::Mat image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+  cv::Mat image = nirslam::read_image(file);
   EXPECT_FALSE(image.empty()) << file;
   EXPECT_EQ(image.type(), CV_8UC1) << file;
   return image;

@@ -2,9 +2,9 @@
 #include <filesystem>
 
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/quality/image_quality.hpp"
 
 namespace nirslam {
@@ -89,7 +89,7 @@ TEST(ImageQuality, RejectsColourEmptyAndMislabelledImages) {
 TEST(Entropy, RealFrameMatchesIndependentHistogram) {
   const std::filesystem::path path = std::filesystem::path(NIRSLAM_SHARED_DATA_DIR) /
                                      "euroc_v1_01_micro/mav0/cam0/data/1403715273262142976.png";
-  const cv::Mat image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat image = nirslam::read_image(path);
   ASSERT_FALSE(image.empty()) << path;
   cv::Mat histogram;
   const int channels[] = {0};

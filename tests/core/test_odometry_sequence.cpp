@@ -11,11 +11,11 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/camera/undistorter.hpp"
 #include "nirslam/eval/evaluation.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/odometry/direct_odometry.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/open_source.hpp"
@@ -311,7 +311,7 @@ TEST(OdometrySequence, VispCubeTracksEveryFrameWithoutLoss) {
   for (int i = 0; i < 218; ++i) {
     char name[32];
     std::snprintf(name, sizeof(name), "image%04d.pgm", i);
-    const cv::Mat grey = cv::imread((dir / name).string(), cv::IMREAD_GRAYSCALE);
+    const cv::Mat grey = nirslam::read_image(dir / name, nirslam::ImageReadMode::Grey);
     ASSERT_FALSE(grey.empty()) << name;
     OdometryFrame frame;
     frame.frame_index = i;

@@ -7,9 +7,9 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/sources/open_source.hpp"
 #include "core/euroc_micro.hpp"
 
@@ -31,7 +31,7 @@ protected:
 
   void write_image(const fs::path& file) {
     fs::create_directories(file.parent_path());
-    ASSERT_TRUE(cv::imwrite(file.string(), cv::Mat(24, 32, CV_8UC1, cv::Scalar(7))));
+    ASSERT_NO_THROW(nirslam::write_image(file, cv::Mat(24, 32, CV_8UC1, cv::Scalar(7))));
   }
 
   // The InputError message open_source throws for `path`.

@@ -9,9 +9,9 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/photometric/response_model.hpp"
 
 namespace nirslam {
@@ -152,7 +152,7 @@ TEST(PhotometricFiles, VignettePngRoundTripsNormalisedByItsMaximum) {
   const fs::path dir = fresh_dir("vignette");
   const cv::Mat map = VignetteModel{Eigen::Vector3d(-0.4, 0.05, 0.0)}.render(160, 120);
   write_vignette_png(dir / "vignette.png", map);
-  const cv::Mat raw = cv::imread((dir / "vignette.png").string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat raw = nirslam::read_image(dir / "vignette.png");
   EXPECT_EQ(raw.type(), CV_16UC1);
   const cv::Mat back = read_vignette_png(dir / "vignette.png");
   double max_value = 0.0;

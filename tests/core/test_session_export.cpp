@@ -6,12 +6,12 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/test_session_support.hpp"
 #include "nirslam/common/error.hpp"
 #include "nirslam/eval/trajectory.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/odometry/direct_odometry.hpp"
 #include "nirslam/photometric/response_model.hpp"
 #include "nirslam/session/odometry_output.hpp"
@@ -106,7 +106,7 @@ TEST(SessionExport, WritesTrajectoryGroundTruthTablesPlotsAndTheReport) {
 
   for (const char* plot : {"report/entropy.png", "report/exposure.png", "report/photometric.png",
                            "report/trajectory.png", "report/error_heatmap.png"}) {
-    const cv::Mat image = cv::imread((out / plot).string(), cv::IMREAD_COLOR);
+    const cv::Mat image = nirslam::read_image(out / plot, nirslam::ImageReadMode::Bgr);
     ASSERT_FALSE(image.empty()) << plot;
     cv::Mat grey;
     cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);

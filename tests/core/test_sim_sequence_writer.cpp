@@ -12,9 +12,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "nirslam/camera/camera_io.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/photometric/response_model.hpp"
 #include "nirslam/sim/sequence_writer.hpp"
 #include "nirslam/sim/simulator.hpp"
@@ -116,9 +116,9 @@ TEST_F(SequenceWriterTest, SequenceRoundTripsThroughTheProjectsReaders) {
     const auto frames_csv = lines_of(folder / "frames.csv");
     ASSERT_EQ(frames_csv.size(), 7u);
     EXPECT_EQ(frames_csv[1].rfind("0,images/00000.png,0.000000000,", 0), 0u) << frames_csv[1];
-    const cv::Mat depth = cv::imread((folder / "depth" / "00003.png").string(), cv::IMREAD_UNCHANGED);
+    const cv::Mat depth = nirslam::read_image(folder / "depth" / "00003.png");
     EXPECT_EQ(depth.type(), CV_16UC1);
-    const cv::Mat sheet = cv::imread((folder / "sheet.png").string(), cv::IMREAD_UNCHANGED);
+    const cv::Mat sheet = nirslam::read_image(folder / "sheet.png");
     EXPECT_FALSE(sheet.empty());
   }
 }

@@ -12,6 +12,7 @@
 #include "nirslam/common/error.hpp"
 #include "nirslam/illumination/advisor.hpp"
 #include "nirslam/illumination/sweep_folder.hpp"
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam {
 namespace {
@@ -30,7 +31,7 @@ protected:
 
   std::string error_of(const std::string& csv) {
     fs::create_directories(dir_ / "images");
-    cv::imwrite((dir_ / "images/a.png").string(), cv::Mat(8, 8, CV_8UC1, cv::Scalar(9)));
+    nirslam::write_image(dir_ / "images/a.png", cv::Mat(8, 8, CV_8UC1, cv::Scalar(9)));
     std::ofstream(dir_ / "sweep.csv") << csv;
     try {
       read_sweep_folder(dir_);

@@ -8,9 +8,10 @@
 
 #include <gtest/gtest.h>
 #include <linux/videodev2.h>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/core.hpp>
 
 #include "nirslam/capture/pixel_format.hpp"
+#include "nirslam/image/image_codec.hpp"
 
 namespace nirslam {
 namespace {
@@ -95,8 +96,7 @@ TEST(V4l2PixelFormat, MjpgDecodesToGrey) {
   cv::Mat grey(24, 32, CV_8UC1);
   for (int y = 0; y < grey.rows; ++y)
     for (int x = 0; x < grey.cols; ++x) grey.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(40 + 4 * x + 2 * y);
-  std::vector<std::uint8_t> jpeg;
-  ASSERT_TRUE(cv::imencode(".jpg", grey, jpeg, {cv::IMWRITE_JPEG_QUALITY, 98}));
+  const std::vector<std::uint8_t> jpeg = encode_jpeg(grey, 98);
   const cv::Mat image = convert_buffer({PixelFormat::Mjpg, 32, 24, 0}, jpeg);
   ASSERT_EQ(image.type(), CV_8UC1);
   ASSERT_EQ(image.size(), grey.size());

@@ -10,10 +10,10 @@
 #include <unistd.h>
 
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "frontends/headless_frontend.hpp"
 #include "nirslam/config/illumination_config.hpp"
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/worker/worker.hpp"
 #include "ui/application.hpp"
@@ -162,7 +162,7 @@ TEST_F(LayoutTest, HeadlessFrontEndWritesTheScreenshot) {
     EXPECT_EQ(result.screenshot, png);
     EXPECT_FALSE(result.renderer.empty());
   }
-  const cv::Mat written = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat written = nirslam::read_image(png, nirslam::ImageReadMode::Bgr);
   ASSERT_FALSE(written.empty()) << png;
   EXPECT_EQ(written.cols, 960);
   EXPECT_EQ(written.rows, 600);

@@ -4,9 +4,9 @@
 #include <filesystem>
 #include <utility>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "nirslam/image/image_codec.hpp"
 #include "nirslam/quality/image_quality.hpp"
 
 namespace nirslam::ui::testing {
@@ -17,7 +17,7 @@ void save_if_requested(const cv::Mat& rgba, const std::string& name) {
   std::filesystem::create_directories(dir);
   cv::Mat bgr;
   cv::cvtColor(rgba, bgr, cv::COLOR_RGBA2BGR);
-  cv::imwrite((std::filesystem::path(dir) / (name + ".png")).string(), bgr);
+  nirslam::write_image((std::filesystem::path(dir) / (name + ".png")), bgr);
 }
 
 Snapshot snapshot_with_frame(Frame frame) {

@@ -18,8 +18,8 @@ namespace nirslam {
 // order strict and deterministic.
 bool natural_less(std::string_view a, std::string_view b);
 
-// Whether a file name has an extension OpenCV decodes here: png jpg jpeg pgm ppm pnm bmp tif tiff
-// (any case).
+// Whether a file name has an extension image_codec decodes: png jpg jpeg pgm ppm pnm (any case).
+// BMP and TIFF are not among them: they would need OpenCV's imgcodecs and with it GDAL.
 bool is_image_file_name(const std::filesystem::path& name);
 
 // The regular image files directly inside `folder`, in natural order of their file names.

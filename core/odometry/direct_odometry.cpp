@@ -285,13 +285,13 @@ struct DirectOdometry::Impl {
     // Blocks of 64 points alternate between the threads: the cost per point differs by host
     // (older hosts' points are mostly bounded or out of view), so halves would not balance.
     constexpr std::size_t kBlock = 64;
-    const odometry::LampGeometry lamp_in_traces = options.lamp_in_traces ? lamp() : odometry::LampGeometry{};
+    const odometry::LampGeometry trace_lamp = options.lamp_in_traces ? lamp() : odometry::LampGeometry{};
     auto trace_part = [&](std::size_t part) {
       std::size_t offset = 0;  // index of the host's first point in the concatenation
       for (const HostTrace& host : hosts) {
         for (std::size_t i = 0; i < host.list->size(); ++i)
           if (((offset + i) / kBlock) % 2 == part)
-            (*host.list)[i].trace(cameras[0], pyramid.level(0), host.T_target_host, host.affine, to, lamp_in_traces);
+            (*host.list)[i].trace(cameras[0], pyramid.level(0), host.T_target_host, host.affine, to, trace_lamp);
         offset += host.list->size();
       }
     };

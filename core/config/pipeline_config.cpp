@@ -77,6 +77,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   odometry.read_flag("init_direction_search", pipeline.odometry.init_direction_search);
   odometry.read<int>("init_search_prune_after_frames", pipeline.odometry.init_search_prune_after_frames, 1, 100);
   odometry.read<int>("init_search_candidates_kept", pipeline.odometry.init_search_candidates_kept, 0, 1000);
+  odometry.read<int>("init_geometric_frames", pipeline.odometry.init_geometric_frames, 0, 60);
   odometry.reject_unknown_keys();
 
   YamlMapReader calibration(root["calibration"], file, "calibration");

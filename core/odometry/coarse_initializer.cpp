@@ -23,6 +23,7 @@ CoarseInitializer::CoarseInitializer(std::vector<LevelCamera> cameras, const Ini
       offset_free_(options.patch_offset_invariant && !options.plain_pre_snap) {}
 
 void CoarseInitializer::set_first(std::shared_ptr<const ImagePyramid> pyramid, double exposure) {
+  geometric_.clear();  // the poses were of the frames after another first frame
   first_ = std::move(pyramid);
   first_exposure_ = exposure;
   PixelSelectorOptions selection;
@@ -674,6 +675,15 @@ void CoarseInitializer::prune_candidates() {
 
 bool CoarseInitializer::align_hypotheses(const ImagePyramid& frame, double exposure) {
   const auto align_start = std::chrono::steady_clock::now();
+  if (static_cast<std::size_t>(frames_) < geometric_.size() && hypotheses_.size() == 1) {
+    // The geometric start's pose of this frame, its camera centre's direction held.
+    const SE3& T = geometric_[static_cast<std::size_t>(frames_)];
+    const Eigen::Vector3d c = -(T.rotation_matrix().transpose() * T.translation());
+    if (c.norm() > 1e-9) {
+      hypotheses_[0].T = T;
+      hypotheses_[0].hold_direction = c.normalized();
+    }
+  }
   for_hypotheses([&](CoarseInitializer& worker, std::size_t begin, std::size_t end) {
     align_hypothesis_range(worker, begin, end, frame, exposure);
   });
@@ -781,7 +791,8 @@ InitializerState CoarseInitializer::add_frame(std::shared_ptr<const ImagePyramid
     if (parallax_ > options_.min_parallax_px) {
       snapped_ = true;
       hypotheses_.assign(1, current_state());
-      if (options_.multi_start_at_snap) {
+      const bool geometric = static_cast<std::size_t>(frames_) + 1 < geometric_.size();
+      if (options_.multi_start_at_snap && !geometric) {
         const Eigen::Vector3d t = T_frame_first_.translation();
         const Eigen::Quaterniond q = T_frame_first_.unit_quaternion();
         hypotheses_.push_back({SE3(Eigen::Quaterniond::Identity(), t), a_, b_, points_, 0.0, {}, Eigen::Vector3d::Zero()});
@@ -789,7 +800,7 @@ InitializerState CoarseInitializer::add_frame(std::shared_ptr<const ImagePyramid
           hypotheses_.push_back({SE3(q, sign * t.norm() * Eigen::Vector3d::UnitZ()), a_, b_, points_, 0.0, {}, Eigen::Vector3d::Zero()});
       }
       for (auto& h : hypotheses_) h.offset_free = offset_free_;
-      const bool search = options_.direction_rings > 0;
+      const bool search = options_.direction_rings > 0 && !geometric;
       auto& search_set = search && options_.plain_hand_over_frames > 0 ? pending_ : hypotheses_;
       first_search_ = hypotheses_.size();
       if (search && options_.plain_starts) {

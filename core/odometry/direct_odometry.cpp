@@ -9,6 +9,7 @@
 
 #include "nirslam/odometry/coarse_initializer.hpp"
 #include "nirslam/odometry/coarse_tracker.hpp"
+#include "nirslam/odometry/geometric_start.hpp"
 #include "nirslam/common/elapsed.hpp"
 #include "nirslam/common/helper_thread.hpp"
 #include "nirslam/odometry/image_pyramid.hpp"
@@ -83,6 +84,11 @@ struct DirectOdometry::Impl {
   double init_first_timestamp = 0.0;
   std::vector<FrameRecord> init_frames;  // T_kf_frame relative to the first frame, pending
   std::vector<SE3> init_T_frame_first;
+  // The geometric start of the segment (OdometryOptions::init_geometric_frames) and the frames
+  // held back for it; pending until it has its frames.
+  std::unique_ptr<GeometricStart> geometric;
+  std::vector<OdometryFrame> geometric_frames;
+  bool geometric_pending = false;
 
   std::unique_ptr<WindowOptimizer> window;
   std::unique_ptr<CoarseTracker> tracker;
@@ -141,6 +147,13 @@ struct DirectOdometry::Impl {
       io.candidates_kept = options.init_search_candidates_kept;
     }
     initializer = std::make_unique<CoarseInitializer>(cameras, io);
+    geometric_frames.clear();
+    geometric_pending = options.init_geometric_frames > 0;
+    if (geometric_pending) {
+      GeometricStartOptions go;
+      go.frames = options.init_geometric_frames;
+      geometric = std::make_unique<GeometricStart>(cameras[0], go);
+    }
     init_frames.clear();
     init_T_frame_first.clear();
     WindowOptions wo;
@@ -754,6 +767,9 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
   if (impl_->phase == Impl::Phase::Initialising && impl_->initializer->state() != InitializerState::Tracking)
     impl_->exposure_explains_brightness = frame.exposure.has_value() && !unmodelled_lamp;
 
+  // Checked and its beam exponent taken (as without the hold); replayed later.
+  if (impl_->geometric_pending && impl_->phase == Impl::Phase::Initialising) return hold_for_geometric_start(frame);
+
   OdometryTimings timings;
   const auto t0 = Clock::now();
   auto pyramid = std::make_shared<const ImagePyramid>(frame.image, impl_->levels);
@@ -801,6 +817,52 @@ void DirectOdometry::active_points(std::vector<Eigen::Vector3d>& out) const {
   for (const auto& f : impl_->window->frames())
     for (const auto& p : f.points)
       out.push_back(Impl::to_map_point(f, p, impl_->cameras[0], impl_->segment, true).p_world);
+}
+
+OdometryResult DirectOdometry::hold_for_geometric_start(const OdometryFrame& frame) {
+  const auto start = Clock::now();
+  OdometryResult result;
+  result.frame_index = frame.frame_index;
+  result.timestamp_s = frame.timestamp_s;
+  result.segment = impl_->segment;
+  GeometricStart& geometric = *impl_->geometric;
+  if (impl_->geometric_frames.empty())
+    geometric.set_first(frame.image);
+  else
+    geometric.add_frame(frame.image);
+  OdometryFrame held = frame;
+  held.image = frame.image.clone();  // the caller may reuse its buffer
+  impl_->geometric_frames.push_back(std::move(held));
+  if (!geometric.complete()) {
+    result.status = TrackingStatus::Initialising;
+    result.message = "initialising: geometric start, frame " + std::to_string(geometric.frames()) + " of " +
+                     std::to_string(impl_->options.init_geometric_frames);
+    result.timings.tracking_ms = result.timings.total_ms = ms_since(start);
+    return result;
+  }
+  impl_->geometric_pending = false;
+  const GeometricStartResult solved = geometric.solve();
+  std::vector<OdometryFrame> frames = std::move(impl_->geometric_frames);
+  impl_->geometric_frames.clear();
+  std::string hand_over;
+  bool new_segment = false;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    result = process(frames[i]);
+    new_segment = new_segment || result.status == TrackingStatus::NewSegment;
+    if (i == 0 && solved.ok && impl_->phase == Impl::Phase::Initialising && !impl_->geometric_pending &&
+        impl_->init_first_index == frames[0].frame_index)
+      impl_->initializer->set_geometric_poses(solved.T_frame_first);
+    if (result.message.rfind("initialised with", 0) == 0) hand_over = result.message;
+  }
+  // The caller sees only this frame's result: a segment begun among the replayed frames is new
+  // to it here.
+  if (new_segment && result.status == TrackingStatus::Tracking) result.status = TrackingStatus::NewSegment;
+  // The hand-over's message (the pipeline logs it) and what the geometric start gave.
+  const std::string geometric_summary =
+      (solved.ok ? "geometric start: " : "geometric start not used: ") + solved.reason;
+  result.message = hand_over.empty() ? geometric_summary : hand_over + "; " + geometric_summary;
+  result.timings.total_ms = ms_since(start);
+  return result;
 }
 
 void DirectOdometry::reset() {

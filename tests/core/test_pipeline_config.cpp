@@ -115,6 +115,13 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   EXPECT_FALSE(shipped.worker.pipeline.light_offset_configured);
   EXPECT_TRUE(shipped.worker.pipeline.estimate_light_offset);
   EXPECT_FALSE(shipped.worker.pipeline.apply_estimated_light_offset);
+  EXPECT_EQ(shipped.worker.pipeline.odometry.init_geometric_frames, 20);
+  EXPECT_EQ(load_pipeline_config(write_pipeline_yaml("geometric_off", "odometry:\n  init_geometric_frames: 0\n"))
+                .worker.pipeline.odometry.init_geometric_frames,
+            0);
+  EXPECT_NE(pipeline_config_error(write_pipeline_yaml("geometric_bad", "odometry:\n  init_geometric_frames: 100\n"))
+                .find("init_geometric_frames"),
+            std::string::npos);
   const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
       "lamp", "odometry:\n  light_offset: [0.0, 0.02, 0.0]\n  apply_estimated_light_offset: true\n"
               "  lamp_factor_derivatives: false\n"

@@ -136,6 +136,11 @@ public:
   // Aligns one more frame; Succeeded once enough parallax was kept for frames_after_snap frames.
   // The frames after the snap are kept (shared) for the joint refinement at the hand-over.
   InitializerState add_frame(std::shared_ptr<const ImagePyramid> frame, double exposure);
+  // Poses from a geometric start (geometric_start.hpp) of the frames this initialiser will be
+  // given, by add_frame's count (index 0: the first frame). After the snap a single hypothesis is
+  // aligned, each frame started from that frame's pose and its camera centre held to the pose's
+  // direction from the first frame (the length free); the multi-start and the search are skipped.
+  void set_geometric_poses(std::vector<SE3> T_frame_first) { geometric_ = std::move(T_frame_first); }
   // Ends early with the current estimate (a static camera): depths stay near 1.
   void force_success() { state_ = InitializerState::Succeeded; }
 
@@ -244,6 +249,7 @@ private:
   int frames_since_snap_ = 0;
   double rms_ = 0.0;
   double parallax_ = 0.0;
+  std::vector<SE3> geometric_;          // set_geometric_poses
   std::vector<Hypothesis> hypotheses_;  // after the snap
   std::vector<Hypothesis> pending_;     // the search set waiting for the plain path's gate
   std::size_t first_search_ = 0;        // index of the search set's first hypothesis

@@ -5,6 +5,7 @@
 // 10-70 degrees off (README, "Odometry benchmark").
 
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <vector>
 
@@ -21,12 +22,22 @@ namespace {
 
 const LevelCamera kGeometricCamera{417.0, 417.0, 319.5, 239.5, 640, 480};
 
-double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+double direction_error_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
 }
 
-Eigen::Vector3d centre_of(const SE3& T_frame_first) {
+Eigen::Vector3d camera_centre_of(const SE3& T_frame_first) {
   return -(T_frame_first.rotation_matrix().transpose() * T_frame_first.translation());
+}
+
+// The bench's hand-held room under the lamp at `power_w`, 640x480 without supersampling.
+SimulatorOptions hand_held_room(double power_w, std::int64_t frames) {
+  SimulatorOptions o;
+  o.scene = sim::SceneKind::Room;
+  o.powers_w = {power_w};
+  o.frames = frames;
+  o.supersampling = 1;
+  return o;
 }
 
 TEST(GeometricStart, ReprojectionJacobiansMatchNumericDifferentiation) {
@@ -94,7 +105,7 @@ TEST(GeometricStart, BundleAdjustmentRecoversTheMotionFromAPerturbedStart) {
   std::vector<SE3> poses(frames);
   for (int k = 1; k < frames; ++k) {
     const SE3& T = truth[static_cast<std::size_t>(k)];
-    const Eigen::Vector3d c = centre_of(T);
+    const Eigen::Vector3d c = camera_centre_of(T);
     const Eigen::Vector3d c_off = Eigen::AngleAxisd(12.0 * M_PI / 180.0, Eigen::Vector3d::UnitX()) * c;
     const Eigen::Matrix3d R = so3_exp(Eigen::Vector3d(0.0, 0.0, M_PI / 180.0)) * T.rotation_matrix();
     poses[static_cast<std::size_t>(k)] = SE3(R, -(R * c_off));
@@ -102,14 +113,14 @@ TEST(GeometricStart, BundleAdjustmentRecoversTheMotionFromAPerturbedStart) {
   std::vector<Eigen::Vector3d> points = points_truth;
   for (auto& p : points) p *= 1.0 + 0.1 * uniform(rng);
   for (int k = 10; k < frames; k += 5)
-    ASSERT_GT(angle_deg(centre_of(poses[static_cast<std::size_t>(k)]), centre_of(truth[static_cast<std::size_t>(k)])), 10.0);
+    ASSERT_GT(direction_error_deg(camera_centre_of(poses[static_cast<std::size_t>(k)]), camera_centre_of(truth[static_cast<std::size_t>(k)])), 10.0);
 
   const BundleResult result = adjust_bundle(kGeometricCamera, poses, points, observations, 1.0, 50);
   EXPECT_LT(result.rms_px, 0.45);  // the noise's 0.3 px per axis is 0.42 px per observation
   EXPECT_GT(result.inlier_observations, static_cast<int>(0.9 * static_cast<double>(observations.size())));
   for (int k = 8; k < frames; ++k) {
     const auto kk = static_cast<std::size_t>(k);
-    EXPECT_LT(angle_deg(centre_of(poses[kk]), centre_of(truth[kk])), 1.0) << "frame " << k;
+    EXPECT_LT(direction_error_deg(camera_centre_of(poses[kk]), camera_centre_of(truth[kk])), 1.0) << "frame " << k;
     EXPECT_LT(so3_log(poses[kk].rotation_matrix() * truth[kk].rotation_matrix().transpose()).norm() * 180.0 / M_PI, 0.1)
         << "frame " << k;
   }
@@ -119,11 +130,7 @@ TEST(GeometricStart, DirectionOfTheHandHeldRoomUnderTheLamp) {
   // The bench's room at 100 W from its first frame: the auto exposure ramps down over the first
   // frames (plain KLT loses most tracks there; these are gain-robust). The direct initialiser
   // alone hands this start over 10-70 degrees off.
-  SimulatorOptions o;
-  o.scene = sim::SceneKind::Room;
-  o.powers_w = {100.0};
-  o.frames = 21;
-  o.supersampling = 1;
+  const SimulatorOptions o = hand_held_room(100.0, 21);
   Simulator simulator(o);
   const auto camera = make_sim_camera(o);
   const LevelCamera base{camera->intrinsics()[0], camera->intrinsics()[1], camera->intrinsics()[2],
@@ -148,7 +155,7 @@ TEST(GeometricStart, DirectionOfTheHandHeldRoomUnderTheLamp) {
   ASSERT_EQ(result.T_frame_first.size(), T_world_cam.size());
   for (std::size_t k = 8; k < T_world_cam.size(); ++k) {
     const Eigen::Vector3d c_true = T_world_cam[0].inverse() * T_world_cam[k].translation();
-    EXPECT_LT(angle_deg(centre_of(result.T_frame_first[k]), c_true), 4.0) << "frame " << k;
+    EXPECT_LT(direction_error_deg(camera_centre_of(result.T_frame_first[k]), c_true), 4.0) << "frame " << k;
   }
 }
 
@@ -156,11 +163,7 @@ TEST(GeometricStart, DirectionOfTheHandHeldRoomUnderTheLamp) {
 // then replayed; every frame gets a pose, and the camera centre's direction from the first frame
 // follows the truth, where without it the hand-over's is 10-70 degrees off on such starts.
 TEST(GeometricStart, OdometryHoldsTheFramesBackAndReplaysThem) {
-  SimulatorOptions o;
-  o.scene = sim::SceneKind::Room;
-  o.powers_w = {20.0};
-  o.frames = 40;
-  o.supersampling = 1;
+  const SimulatorOptions o = hand_held_room(20.0, 40);
   Simulator simulator(o);
   OdometryOptions options;
   options.init_geometric_frames = 20;
@@ -191,7 +194,7 @@ TEST(GeometricStart, OdometryHoldsTheFramesBackAndReplaysThem) {
   for (std::size_t k = 10; k < trajectory.size(); ++k) {
     const Eigen::Vector3d c = T_first_world * trajectory[k].T_world_cam.translation();
     const Eigen::Vector3d c_true = T_world_cam[0].inverse() * T_world_cam[k].translation();
-    EXPECT_LT(angle_deg(c, c_true), 5.0) << "frame " << k;
+    EXPECT_LT(direction_error_deg(c, c_true), 5.0) << "frame " << k;
   }
 }
 
@@ -239,7 +242,7 @@ TEST(GeometricStart, TooLittleTranslationLeavesTheDirectionUndetermined) {
   const GeometricStartResult moving = two_wall_start(0.2);
   ASSERT_TRUE(moving.ok) << moving.reason;
   EXPECT_GT(moving.parallax_px, 8.0);
-  EXPECT_LT(angle_deg(centre_of(moving.T_frame_first.back()), Eigen::Vector3d(1.0, 0.0, 1.0)), 2.0);
+  EXPECT_LT(direction_error_deg(camera_centre_of(moving.T_frame_first.back()), Eigen::Vector3d(1.0, 0.0, 1.0)), 2.0);
 }
 
 TEST(GeometricStart, TooFewTracksSaysSo) {

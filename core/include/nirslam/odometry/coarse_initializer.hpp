@@ -140,6 +140,7 @@ public:
   // given, by add_frame's count (index 0: the first frame). After the snap a single hypothesis is
   // aligned, each frame started from that frame's pose and its camera centre held to the pose's
   // direction from the first frame (the length free); the multi-start and the search are skipped.
+  // Frames after the last pose keep the last direction held; a snap after it ignores the poses.
   void set_geometric_poses(std::vector<SE3> T_frame_first) { geometric_ = std::move(T_frame_first); }
   // Ends early with the current estimate (a static camera): depths stay near 1.
   void force_success() { state_ = InitializerState::Succeeded; }

@@ -9,6 +9,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "nirslam/common/huber.hpp"
 #include "nirslam/photometric/photometric_tracker.hpp"
 
 namespace nirslam::odometry {
@@ -23,8 +24,6 @@ PhotometricTrackerOptions track_options(const GeometricStartOptions& options) {
   o.max_residual_rms = options.max_track_residual;
   return o;
 }
-
-double huber_weight_px(double r, double k) { return r <= k ? 1.0 : k / r; }
 
 Eigen::Vector3d triangulate(const LevelCamera& cam, const SE3& T_a, const Eigen::Vector2d& pa, const SE3& T_b,
                             const Eigen::Vector2d& pb, bool& ok) {
@@ -90,8 +89,7 @@ BundleResult adjust_bundle(const LevelCamera& cam, std::vector<SE3>& T_frame_fir
         e += 2.0 * huber_px * 50.0;  // behind the camera: a large outlier cost
         continue;
       }
-      const double r = (cam.project(p) - o.pixel).norm();
-      e += r <= huber_px ? r * r : huber_px * (2.0 * r - huber_px);
+      e += twice_huber_loss((cam.project(p) - o.pixel).norm(), huber_px);
     }
     return e;
   };
@@ -119,7 +117,7 @@ BundleResult adjust_bundle(const LevelCamera& cam, std::vector<SE3>& T_frame_fir
       const auto pi = static_cast<std::size_t>(o.point);
       if (!reprojection_jacobians(cam, T_frame_first[static_cast<std::size_t>(o.frame)], points[pi], o.pixel, r, Jc, Jx))
         continue;
-      const double w = huber_weight_px(r.norm(), huber_px);
+      const double w = huber_weight(r.norm(), huber_px);
       H_xx[pi] += w * Jx.transpose() * Jx;
       b_x[pi] += w * Jx.transpose() * r;
       if (o.frame == 0) continue;

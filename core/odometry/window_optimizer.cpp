@@ -54,6 +54,7 @@ std::vector<PairCache> make_pairs(const std::vector<WindowFrame>& frames) {
 using Vector9d = Eigen::Matrix<double, 9, 1>;
 using Matrix9d = Eigen::Matrix<double, 9, 9>;
 using Matrix89d = Eigen::Matrix<double, 8, 9>;
+using Matrix94d = Eigen::Matrix<double, 9, 4>;
 
 // Maps the 9 relative parameters to the host's 8 parameters (xi_h, a_h, b_h).
 Matrix89d host_map(const PairCache& p) {
@@ -222,11 +223,11 @@ double WindowOptimizer::evaluate_residuals(const std::vector<int>* only_hosts, L
         const double g_scale = lamp.g * p.affine.scale;
         const double beam = target_beam_scale(camera_.unproject(point.pixel), point.inverse_depth, p.R, p.t, options_.lamp);
 
-        Matrix9d H_r = Matrix9d::Zero();
-        Vector9d b_r = Vector9d::Zero();
-        Vector9d H_rp = Vector9d::Zero();
-        double H_pp = 0.0;
-        double b_pp = 0.0;
+        // Every pixel's Jacobian is J = M u with u = (g_x, g_y, host term, 1) and M fixed for the
+        // residual (the centre pixel's geometry serves the pattern), so the pattern's sums are
+        // kept as W u u^T and W r u (4x4 and 4) and mapped through M once per residual.
+        Eigen::Matrix4d S = Eigen::Matrix4d::Zero();
+        Eigen::Vector4d s_r = Eigen::Vector4d::Zero();
         double energy = 0.0;
         bool in_view = true;
         for (int i = 0; i < kPatternSize; ++i) {
@@ -247,18 +248,9 @@ double WindowOptimizer::evaluate_residuals(const std::vector<int>* only_hosts, L
           energy += wg * hw * r_beam * r_beam * (2.0 - hw);
           if (lin == nullptr) continue;
           const double W = wg * hw / (beam * beam);
-          const Eigen::Vector2d g = s.tail<2>().cast<double>();
-          Vector9d J;
-          J.head<6>() = (g.transpose() * d_pose - host_term * lamp.d_log_g_d_pose).transpose();
-          J[6] = -host_term;
-          J[7] = -1.0;
-          J[8] = g_scale;
-          const double J_rho = g.dot(d_rho) - host_term * lamp.d_log_g_d_rho;
-          H_r.noalias() += (W * J) * J.transpose();
-          b_r += W * r * J;
-          H_rp += W * J_rho * J;
-          H_pp += W * J_rho * J_rho;
-          b_pp += W * J_rho * r;
+          const Eigen::Vector4d u(static_cast<double>(s[1]), static_cast<double>(s[2]), host_term, 1.0);
+          S.noalias() += (W * u) * u.transpose();
+          s_r += (W * r) * u;
         }
         if (in_view) res.energy = std::min(energy, outlier);
         acc.energy += res.energy;
@@ -267,12 +259,23 @@ double WindowOptimizer::evaluate_residuals(const std::vector<int>* only_hosts, L
         acc.inlier_energy += energy;
         acc.inlier_count += kPatternSize;
         if (lin == nullptr) continue;
-        lin->H_rel[static_cast<std::size_t>(worker)][pair_index] += H_r;
-        lin->b_rel[static_cast<std::size_t>(worker)][pair_index] += b_r;
+        Matrix94d M = Matrix94d::Zero();  // d r / d (relative parameters) = M u
+        M.block<6, 1>(0, 0) = d_pose.row(0).transpose();
+        M.block<6, 1>(0, 1) = d_pose.row(1).transpose();
+        M.block<6, 1>(0, 2) = -lamp.d_log_g_d_pose.transpose();
+        M(6, 2) = -1.0;
+        M(7, 3) = -1.0;
+        M(8, 3) = g_scale;
+        const Eigen::Vector4d v(d_rho.x(), d_rho.y(), -lamp.d_log_g_d_rho, 0.0);  // d r / d rho = v . u
+        const Matrix94d MS = M * S;
+        const Eigen::Vector4d Sv = S * v;
+        const Vector9d H_rp = M * Sv;
+        lin->H_rel[static_cast<std::size_t>(worker)][pair_index].noalias() += MS * M.transpose();
+        lin->b_rel[static_cast<std::size_t>(worker)][pair_index].noalias() += M * s_r;
         point.H_host_point += lin->host_maps[pair_index] * H_rp;
         res.H_target_point = H_rp.head<8>();
-        point.H_pp += H_pp;
-        point.b_p += b_pp;
+        point.H_pp += v.dot(Sv);
+        point.b_p += v.dot(s_r);
       }
     }
   });
@@ -339,33 +342,38 @@ void WindowOptimizer::reduce(Eigen::MatrixXd& H, Eigen::VectorXd& b, double lamb
   };
   if (lambda > 0.0) H.diagonal() *= 1.0 + lambda;
 
-  // Schur complement over the points: each couples its host and its inlier targets. Split over
-  // two threads by the block columns of H (and segments of b) each owns, those of even / odd
-  // frames (columns: H is column-major, so the threads write apart): both walk all points in the
-  // same order and each updates only its own, so every entry of H and b gets the same
-  // subtractions in the same order as on one thread (results identical to the bit).
+  // Schur complement over the points: each couples its host and its inlier targets. Only the
+  // blocks on and below the diagonal are updated (H is symmetric; the upper ones are copied from
+  // them at the end). Split over two threads by the block columns of H (and segments of b) each
+  // owns, those of even / odd frames (columns: H is column-major, so the threads write apart):
+  // both walk all points in the same order and each updates only its own, so every entry of H and
+  // b gets the same subtractions in the same order as on one thread (results identical to the bit).
   auto schur_rows = [&](std::size_t parity) {
     std::vector<std::pair<Eigen::Index, const Vector8d*>> coupling;
     for (std::size_t h = 0; h < n; ++h) {
       if (!hosts_to_use(h)) continue;
       for (auto& point : frames_[h].points) {
         if (point.H_pp <= 0.0) continue;
-        const double H_pp = point.H_pp * (1.0 + lambda) + 1e-12;
+        const double inverse_H_pp = 1.0 / (point.H_pp * (1.0 + lambda) + 1e-12);
         coupling.clear();
         coupling.emplace_back(static_cast<Eigen::Index>(8 * h), &point.H_host_point);
         for (const auto& res : point.residuals) {
           if (!res.inlier) continue;
           coupling.emplace_back(static_cast<Eigen::Index>(8 * index_of(res.target_id)), &res.H_target_point);
         }
-        for (const auto& [ia, ca] : coupling) {
-          if (static_cast<std::size_t>(ia / 8) % 2 == parity) b.segment<8>(ia) -= *ca * (point.b_p / H_pp);
-          for (const auto& [ib, cb] : coupling)
-            if (static_cast<std::size_t>(ib / 8) % 2 == parity) H.block<8, 8>(ia, ib) -= *ca * cb->transpose() / H_pp;
+        for (const auto& [ib, cb] : coupling) {
+          if (static_cast<std::size_t>(ib / 8) % 2 != parity) continue;
+          const Vector8d cb_scaled = *cb * inverse_H_pp;
+          b.segment<8>(ib) -= cb_scaled * point.b_p;
+          for (const auto& [ia, ca] : coupling)
+            if (ia >= ib) H.block<8, 8>(ia, ib).noalias() -= *ca * cb_scaled.transpose();
         }
       }
     }
   };
   helper_->run([&] { schur_rows(0); }, [&] { schur_rows(1); });
+  for (Eigen::Index col = 1; col < H.cols(); ++col)
+    for (Eigen::Index row = 0; row < col; ++row) H(row, col) = H(col, row);
 }
 
 double WindowOptimizer::frame_prior_energy() const {

@@ -173,11 +173,16 @@ TEST(OdometrySequence, CorrectedFramesUnderTheLampAsSquareRootWithinOnePercent) 
 // The vehicle sequences of `bench` (forward motion at 4 and 2.5 m/s). Before the initialiser
 // kept several starting hypotheses from its snap on, both settled on a wrong structure (a pitch
 // error of a degree or more, the translation 20-30 degrees off) and ended at 8-13 % of the path.
-// Measured with this build (supersampling 1, machine loaded): outdoor 0.71 %, parking 0.10 %
-// (ctest -R OdometrySequence.Vehicle); the bound is the 1 %.
+// The street is rendered as `bench` renders it (2x2 supersampling): its road, seen at grazing
+// angles, aliases at 1x1 (sim/simulator.hpp), and there the run's scale drift moved between 0.47
+// and 1.02 % of the path with changes of rounding alone (the window's sums regrouped, session 18).
+// Measured (ctest -R OdometrySequence.Vehicle): outdoor 0.38 % (2x2), parking 0.08 % (1x1); the
+// bound is the 1 %.
 TEST(OdometrySequence, VehicleOutdoor50WattsWithinOnePercentOfPathLength) {
-  expect_within_one_percent(run_simulated(sim::SceneKind::Outdoor, 50.0, 300, false,
-                                          [](SimulatorOptions& o) { o.motion = sim::MotionKind::Vehicle; }));
+  expect_within_one_percent(run_simulated(sim::SceneKind::Outdoor, 50.0, 300, false, [](SimulatorOptions& o) {
+    o.motion = sim::MotionKind::Vehicle;
+    o.supersampling = 2;
+  }));
 }
 TEST(OdometrySequence, VehicleParking50WattsWithinOnePercentOfPathLength) {
   expect_within_one_percent(run_simulated(sim::SceneKind::Parking, 50.0, 300, false,

@@ -78,6 +78,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   odometry.read<int>("init_search_prune_after_frames", pipeline.odometry.init_search_prune_after_frames, 1, 100);
   odometry.read<int>("init_search_candidates_kept", pipeline.odometry.init_search_candidates_kept, 0, 1000);
   odometry.read<int>("init_geometric_frames", pipeline.odometry.init_geometric_frames, 0, 60);
+  odometry.read_flag("init_hold_geometric_pose", pipeline.odometry.init_hold_geometric_pose);
   odometry.reject_unknown_keys();
 
   YamlMapReader calibration(root["calibration"], file, "calibration");

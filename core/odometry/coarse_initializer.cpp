@@ -24,6 +24,7 @@ CoarseInitializer::CoarseInitializer(std::vector<LevelCamera> cameras, const Ini
 
 void CoarseInitializer::set_first(std::shared_ptr<const ImagePyramid> pyramid, double exposure) {
   geometric_.clear();  // the poses were of the frames after another first frame
+  aligned_to_geometric_ = false;
   first_ = std::move(pyramid);
   first_exposure_ = exposure;
   PixelSelectorOptions selection;
@@ -682,6 +683,7 @@ bool CoarseInitializer::align_hypotheses(const ImagePyramid& frame, double expos
     if (c.norm() > 1e-9) {
       hypotheses_[0].T = T;
       hypotheses_[0].hold_direction = c.normalized();
+      aligned_to_geometric_ = true;
     }
   }
   for_hypotheses([&](CoarseInitializer& worker, std::size_t begin, std::size_t end) {

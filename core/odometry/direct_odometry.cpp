@@ -89,6 +89,13 @@ struct DirectOdometry::Impl {
   std::unique_ptr<GeometricStart> geometric;
   std::vector<OdometryFrame> geometric_frames;
   bool geometric_pending = false;
+  // Its poses of the held frames (T_frame_first in its own gauge) and, from a held hand-over on
+  // (OdometryOptions::init_hold_geometric_pose), the odometry's translation per geometric unit:
+  // keyframes made of held frames are held at those poses (0: none held).
+  std::vector<SE3> geometric_poses;
+  std::int64_t geometric_first_index = -1;
+  double geometric_scale = 0.0;
+  SE3 geometric_T_first_world;
 
   std::unique_ptr<WindowOptimizer> window;
   std::unique_ptr<CoarseTracker> tracker;
@@ -118,6 +125,7 @@ struct DirectOdometry::Impl {
 
   // --- helpers ---
   void start_segment(const SE3& origin) {
+    geometric_scale = 0.0;
     phase = Phase::Initialising;
     segment_origin = origin;
     InitializerOptions io;
@@ -461,6 +469,18 @@ struct DirectOdometry::Impl {
     }
   }
 
+  // A keyframe made of a frame the geometric start posed, after a held hand-over: held at that
+  // pose in the odometry's scale, so the direction of travel the start found survives the
+  // window's optimisations until its frames are past.
+  void hold_geometric_keyframe(std::int64_t frame_index) {
+    const std::int64_t k = frame_index - geometric_first_index;
+    if (geometric_scale <= 0.0 || k <= 0 || k >= static_cast<std::int64_t>(geometric_poses.size())) return;
+    const SE3& T = geometric_poses[static_cast<std::size_t>(k)];
+    WindowFrame& newest = window->frames().back();
+    newest.pose_prior_weight = kPosePriorWeight;
+    newest.pose_prior = SE3(T.unit_quaternion(), T.translation() * geometric_scale) * geometric_T_first_world;
+  }
+
   void map_keyframe() {
     activate_points();
     update_surface_normals();
@@ -577,6 +597,23 @@ struct DirectOdometry::Impl {
     window->add_frame(std::move(first));
     const SE3 T_cam_world = initializer->T_frame_first() * T_first_world;
     add_keyframe(frame, pyramid, T_cam_world, initializer->affine_a(), initializer->affine_b(), exposure);
+    const std::int64_t geometric_k = frame.frame_index - geometric_first_index;
+    if (options.init_hold_geometric_pose && initializer->aligned_to_geometric_poses() &&
+        init_first_index == geometric_first_index && geometric_k > 0 &&
+        geometric_k < static_cast<std::int64_t>(geometric_poses.size()) &&
+        geometric_poses[static_cast<std::size_t>(geometric_k)].translation().norm() > 1e-9) {
+      // The hand-over keyframe stays where the initialiser put it (its direction of travel from
+      // the geometric start): two keyframes leave that direction weakly determined, and the
+      // window's own first optimisation turned it by about 20 degrees on the room's starts from
+      // frame 30. Held as firmly as the first keyframe's gauge; a softer prior (1e8) kept most
+      // of that turn. The later keyframes among the held frames follow (hold_geometric_keyframe).
+      WindowFrame& second = window->frames().back();
+      second.pose_prior_weight = kPosePriorWeight;
+      second.pose_prior = T_cam_world;
+      geometric_scale = initializer->T_frame_first().translation().norm() /
+                        geometric_poses[static_cast<std::size_t>(geometric_k)].translation().norm();
+      geometric_T_first_world = T_first_world;
+    }
     map_keyframe();
     if (window->point_count() < 50) {
       // The window kept too few of the initialiser's points: try again from this frame.
@@ -690,6 +727,7 @@ struct DirectOdometry::Impl {
     if (keyframe) {
       const auto t1 = Clock::now();
       add_keyframe(frame, pyramid, T_cam_world, best.affine_a, best.affine_b, exposure);
+      hold_geometric_keyframe(frame.frame_index);
       map_keyframe();
       const WindowFrame& newest = window->frames().back();
       frames.push_back({frame.frame_index, frame.timestamp_s, segment, window_records[newest.id], SE3()});
@@ -844,6 +882,8 @@ OdometryResult DirectOdometry::hold_for_geometric_start(const OdometryFrame& fra
   const GeometricStartResult solved = geometric.solve();
   std::vector<OdometryFrame> frames = std::move(impl_->geometric_frames);
   impl_->geometric_frames.clear();
+  impl_->geometric_poses = solved.ok ? solved.T_frame_first : std::vector<SE3>{};
+  impl_->geometric_first_index = frames.front().frame_index;
   std::string hand_over;
   bool new_segment = false;
   for (std::size_t i = 0; i < frames.size(); ++i) {

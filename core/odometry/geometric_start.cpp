@@ -357,9 +357,14 @@ GeometricStartResult GeometricStart::solve() const {
   for (auto& Tk : T) Tk = SE3(Tk.unit_quaternion(), Tk.translation() * scale);
   out.T_frame_first = std::move(T);
   out.ok = true;
-  char summary[160];
-  std::snprintf(summary, sizeof summary, "%d tracks over %d frames, %d inliers, %d points, %.2f px rms, parallax %.1f px",
-                out.tracks_at_end, K, out.inliers, out.points, out.rms_px, out.parallax_px);
+  const SE3& T_end = out.T_frame_first.back();
+  const Eigen::Vector3d direction = -(T_end.rotation_matrix().transpose() * T_end.translation()).normalized();
+  char summary[224];
+  std::snprintf(summary, sizeof summary,
+                "%d tracks over %d frames, %d inliers, %d points, %.2f px rms, parallax %.1f px, direction of "
+                "travel (%.3f, %.3f, %.3f) in the first frame's axes",
+                out.tracks_at_end, K, out.inliers, out.points, out.rms_px, out.parallax_px, direction.x(),
+                direction.y(), direction.z());
   out.reason = summary;
   return out;
 }

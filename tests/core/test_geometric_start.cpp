@@ -9,6 +9,8 @@
 #include <random>
 #include <vector>
 
+#include <iostream>
+
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -196,6 +198,54 @@ TEST(GeometricStart, OdometryHoldsTheFramesBackAndReplaysThem) {
     const Eigen::Vector3d c_true = T_world_cam[0].inverse() * T_world_cam[k].translation();
     EXPECT_LT(direction_error_deg(c, c_true), 5.0) << "frame " << k;
   }
+}
+
+// The largest angle between the camera centre's direction from the first frame the odometry
+// gives and the truth's, over frames 10 on, with the odometry started at frame `skip` of the room
+// at 50 W rendered as `bench` renders it (the 12-run start-offset set's starts from frame 30).
+double room_start_direction_error_deg(std::int64_t skip, bool hold_hand_over) {
+  SimulatorOptions o = hand_held_room(50.0, skip + 40);
+  o.supersampling = 2;
+  Simulator simulator(o);
+  OdometryOptions options;
+  options.init_geometric_frames = 20;
+  options.init_hold_geometric_pose = hold_hand_over;
+  const auto camera = make_sim_camera(hand_held_room(50.0, 1));
+  DirectOdometry odometry(PinholeCamera(camera->width(), camera->height(), camera->intrinsics()), options);
+  std::vector<SE3> T_world_cam;
+  while (auto f = simulator.next()) {
+    if (f->frame.index < skip) continue;
+    OdometryFrame frame;
+    frame.frame_index = f->frame.index;
+    frame.timestamp_s = f->frame.timestamp_s;
+    const double scale = f->frame.image.depth() == CV_16U ? 255.0 / f->frame.max_value() : 1.0;
+    f->frame.image.convertTo(frame.image, CV_32F, scale);
+    odometry.process(frame);
+    T_world_cam.push_back(f->T_world_cam);
+  }
+  const std::vector<PoseStamped> trajectory = odometry.trajectory();
+  EXPECT_EQ(trajectory.size(), T_world_cam.size());
+  const SE3 T_first_world = trajectory[0].T_world_cam.inverse();
+  double worst = 0.0;
+  for (std::size_t k = 10; k < trajectory.size() && k < T_world_cam.size(); ++k) {
+    const Eigen::Vector3d c = T_first_world * trajectory[k].T_world_cam.translation();
+    const Eigen::Vector3d c_true = T_world_cam[0].inverse() * T_world_cam[k].translation();
+    worst = std::max(worst, direction_error_deg(c, c_true));
+  }
+  return worst;
+}
+
+// The keyframes among the held frames held at the geometric start's poses
+// (OdometryOptions::init_hold_geometric_pose): with two keyframes the direction of travel is
+// weakly determined, and without the hold the window's first optimisations turned it by about
+// 20 degrees on this start (the bench's render, 2x2 supersampling; the geometric start itself
+// had it within 0.1 degree). Measured: held 4.9 degrees at worst from frame 10 on, free 24.9.
+TEST(GeometricStart, HeldKeyframesKeepTheDirectionOfARoomStartFromFrame30) {
+  const double held = room_start_direction_error_deg(30, true);
+  const double free = room_start_direction_error_deg(30, false);
+  std::cout << "room 50 W from frame 30, worst direction error from frame 10: held " << held << " deg, free " << free
+            << " deg\n";
+  EXPECT_LT(held, 8.0);
 }
 
 // Two textured walls facing the camera, 2 m away left of centre and 4 m away right of it (depth

@@ -116,6 +116,9 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   EXPECT_TRUE(shipped.worker.pipeline.estimate_light_offset);
   EXPECT_FALSE(shipped.worker.pipeline.apply_estimated_light_offset);
   EXPECT_EQ(shipped.worker.pipeline.odometry.init_geometric_frames, 20);
+  EXPECT_TRUE(shipped.worker.pipeline.odometry.init_hold_geometric_pose);
+  EXPECT_FALSE(load_pipeline_config(write_pipeline_yaml("hold_off", "odometry:\n  init_hold_geometric_pose: false\n"))
+                   .worker.pipeline.odometry.init_hold_geometric_pose);
   EXPECT_EQ(load_pipeline_config(write_pipeline_yaml("geometric_off", "odometry:\n  init_geometric_frames: 0\n"))
                 .worker.pipeline.odometry.init_geometric_frames,
             0);

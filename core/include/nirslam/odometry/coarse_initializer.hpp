@@ -142,6 +142,8 @@ public:
   // direction from the first frame (the length free); the multi-start and the search are skipped.
   // Frames after the last pose keep the last direction held; a snap after it ignores the poses.
   void set_geometric_poses(std::vector<SE3> T_frame_first) { geometric_ = std::move(T_frame_first); }
+  // A frame after the snap was aligned from a geometric pose (its direction held).
+  bool aligned_to_geometric_poses() const { return aligned_to_geometric_; }
   // Ends early with the current estimate (a static camera): depths stay near 1.
   void force_success() { state_ = InitializerState::Succeeded; }
 
@@ -251,6 +253,7 @@ private:
   double rms_ = 0.0;
   double parallax_ = 0.0;
   std::vector<SE3> geometric_;          // set_geometric_poses
+  bool aligned_to_geometric_ = false;
   std::vector<Hypothesis> hypotheses_;  // after the snap
   std::vector<Hypothesis> pending_;     // the search set waiting for the plain path's gate
   std::size_t first_search_ = 0;        // index of the search set's first hypothesis

@@ -203,13 +203,13 @@ TEST(GeometricStart, OdometryHoldsTheFramesBackAndReplaysThem) {
 // The largest angle between the camera centre's direction from the first frame the odometry
 // gives and the truth's, over frames 10 on, with the odometry started at frame `skip` of the room
 // at 50 W rendered as `bench` renders it (the 12-run start-offset set's starts from frame 30).
-double room_start_direction_error_deg(std::int64_t skip, bool hold_hand_over) {
+double room_start_direction_error_deg(std::int64_t skip, bool hold_keyframes) {
   SimulatorOptions o = hand_held_room(50.0, skip + 40);
   o.supersampling = 2;
   Simulator simulator(o);
   OdometryOptions options;
   options.init_geometric_frames = 20;
-  options.init_hold_geometric_pose = hold_hand_over;
+  options.init_hold_geometric_pose = hold_keyframes;
   const auto camera = make_sim_camera(hand_held_room(50.0, 1));
   DirectOdometry odometry(PinholeCamera(camera->width(), camera->height(), camera->intrinsics()), options);
   std::vector<SE3> T_world_cam;

@@ -136,8 +136,9 @@ struct OdometryOptions {
   // geometric direction, the initialiser's length), later ones at the geometric poses in that
   // scale. Without, the window's first optimisations turned the direction of travel by about
   // 20 degrees on the room's starts from frame 30. The 12-run start-offset set: 0.30 % of the
-  // path, 12 of 12 under 1 % (0.70 %, 8 of 12 without; the hand-over keyframe alone 0.56 %, a
-  // softer prior of 1e8 on it 0.76 %); plain `bench` 12 of 12 within 1 % either way.
+  // path, 12 of 12 under 1 % (0.70 %, 8 of 12 without; in experiment builds the hand-over
+  // keyframe alone 0.56 %, a softer prior of 1e8 on it 0.76 %); plain `bench` 12 of 12 within
+  // 1 % either way.
   bool init_hold_geometric_pose = true;
 };
 

@@ -95,7 +95,6 @@ struct DirectOdometry::Impl {
   std::vector<SE3> geometric_poses;
   std::int64_t geometric_first_index = -1;
   double geometric_scale = 0.0;
-  SE3 geometric_T_first_world;
 
   std::unique_ptr<WindowOptimizer> window;
   std::unique_ptr<CoarseTracker> tracker;
@@ -473,12 +472,18 @@ struct DirectOdometry::Impl {
   // pose in the odometry's scale, so the direction of travel the start found survives the
   // window's optimisations until its frames are past.
   void hold_geometric_keyframe(std::int64_t frame_index) {
-    const std::int64_t k = frame_index - geometric_first_index;
-    if (geometric_scale <= 0.0 || k <= 0 || k >= static_cast<std::int64_t>(geometric_poses.size())) return;
-    const SE3& T = geometric_poses[static_cast<std::size_t>(k)];
+    const SE3* T = geometric_pose_of(frame_index);
+    if (geometric_scale <= 0.0 || T == nullptr) return;
     WindowFrame& newest = window->frames().back();
     newest.pose_prior_weight = kPosePriorWeight;
-    newest.pose_prior = SE3(T.unit_quaternion(), T.translation() * geometric_scale) * geometric_T_first_world;
+    newest.pose_prior = SE3(T->unit_quaternion(), T->translation() * geometric_scale) * segment_origin.inverse();
+  }
+
+  // The geometric start's pose of a held frame after its first (nullptr for any other frame).
+  const SE3* geometric_pose_of(std::int64_t frame_index) const {
+    const std::int64_t k = frame_index - geometric_first_index;
+    if (k <= 0 || k >= static_cast<std::int64_t>(geometric_poses.size())) return nullptr;
+    return &geometric_poses[static_cast<std::size_t>(k)];
   }
 
   void map_keyframe() {
@@ -597,11 +602,10 @@ struct DirectOdometry::Impl {
     window->add_frame(std::move(first));
     const SE3 T_cam_world = initializer->T_frame_first() * T_first_world;
     add_keyframe(frame, pyramid, T_cam_world, initializer->affine_a(), initializer->affine_b(), exposure);
-    const std::int64_t geometric_k = frame.frame_index - geometric_first_index;
+    const SE3* geometric_pose = geometric_pose_of(frame.frame_index);
     if (options.init_hold_geometric_pose && initializer->aligned_to_geometric_poses() &&
-        init_first_index == geometric_first_index && geometric_k > 0 &&
-        geometric_k < static_cast<std::int64_t>(geometric_poses.size()) &&
-        geometric_poses[static_cast<std::size_t>(geometric_k)].translation().norm() > 1e-9) {
+        init_first_index == geometric_first_index && geometric_pose != nullptr &&
+        geometric_pose->translation().norm() > 1e-9) {
       // The hand-over keyframe stays where the initialiser put it (its direction of travel from
       // the geometric start): two keyframes leave that direction weakly determined, and the
       // window's own first optimisation turned it by about 20 degrees on the room's starts from
@@ -610,9 +614,7 @@ struct DirectOdometry::Impl {
       WindowFrame& second = window->frames().back();
       second.pose_prior_weight = kPosePriorWeight;
       second.pose_prior = T_cam_world;
-      geometric_scale = initializer->T_frame_first().translation().norm() /
-                        geometric_poses[static_cast<std::size_t>(geometric_k)].translation().norm();
-      geometric_T_first_world = T_first_world;
+      geometric_scale = initializer->T_frame_first().translation().norm() / geometric_pose->translation().norm();
     }
     map_keyframe();
     if (window->point_count() < 50) {

@@ -5,7 +5,7 @@ set -euo pipefail
 
 packages=(
   # toolchain
-  build-essential cmake pkg-config git python3
+  build-essential cmake ninja-build pkg-config git python3
   # core
   libeigen3-dev libopencv-dev libceres-dev libv4l-dev libyaml-cpp-dev nlohmann-json3-dev
   libspdlog-dev libcli11-dev libzip-dev libpng-dev libjpeg-dev

@@ -114,8 +114,9 @@ namespace nirslam {
 // Parameter layout of one residual's Jacobian: c1..c4, v1..v3, e, L.
 using PhotometricJacobian = Eigen::Matrix<double, 9, 1>;
 
-// f^-1 for one response: u = sqrt(X) with f(u) = y, from a table and two Newton steps (exact to
-// about 1e-12). Requires a strictly monotonic f.
+// f^-1 for one response: u = sqrt(X) with f(u) = y, from a cubic Hermite table (nodes and their
+// slopes) and Newton steps, one except beside a zero slope (exact to about 1e-12). Requires a
+// strictly monotonic f.
 class InverseResponse {
 public:
   explicit InverseResponse(const Eigen::Vector4d& c);
@@ -126,6 +127,7 @@ public:
 private:
   Eigen::Vector4d c_;
   std::vector<double> table_;  // u at y = i / (size - 1)
+  std::vector<double> du_dy_;  // 1 / f'(u) there
 };
 
 // r = G(grey) / (exposure V(radius)) - radiance, grey in 0..255. With a jacobian, d r / d(c, v, e, L).

@@ -118,10 +118,15 @@ struct LampFactor {
 // normal) and the cos term is left out.
 inline constexpr double kMinLampCosine = 0.2;
 // `normal_host`: the surface normal in the host camera frame (unit), or nullptr. False when the
-// point sits on the light or, with a beam, behind it.
+// point sits on the light or, with a beam, behind it. `with_derivatives` false: g alone (the
+// energy passes), also when lamp.derivatives is set.
+// The three log terms share two logarithms: with s = n_h / n_t,
+//   log g = m log(u_t,z / u_h,z sqrt(s)) + log(s [sqrt(s) c_t / c_h]),
+// the bracket with a normal only; the window calls this twice per residual and the epipolar
+// search at every step, so each logarithm shows in the profile.
 inline bool lamp_factor(const Eigen::Vector3d& ray, double rho, const Eigen::Matrix3d& R_target_host,
                         const Eigen::Vector3d& t_target_host, const LampGeometry& lamp, LampFactor& out,
-                        const Eigen::Vector3d* normal_host = nullptr) {
+                        const Eigen::Vector3d* normal_host = nullptr, bool with_derivatives = true) {
   const Eigen::Vector3d& o = lamp.offset;
   const double m = lamp.beam_exponent;
   const Eigen::Vector3d q = R_target_host * ray + rho * t_target_host;
@@ -130,40 +135,54 @@ inline bool lamp_factor(const Eigen::Vector3d& ray, double rho, const Eigen::Mat
   const double n_h = u_h.squaredNorm();
   const double n_t = u_t.squaredNorm();
   if (n_h < 1e-12 || n_t < 1e-12) return false;
+  const bool derivatives = with_derivatives && lamp.derivatives;
   const Eigen::Vector3d t_minus_o = t_target_host - o;
+  const double norm_ratio = n_h / n_t;
   double norm_weight = 1.0;  // (1 + m/2 + c/2)
-  double log_g = 0.0;
+  double beam_argument = 1.0;   // u_t,z / u_h,z sqrt(s), raised to m
+  double other_argument = norm_ratio;  // s, times sqrt(s) c_t / c_h with a normal
+  double sqrt_norm_ratio = 0.0;  // 0: not taken yet
   Eigen::Vector3d w = Eigen::Vector3d::Zero();  // d log g / d u_t, but for the norm term
   Eigen::Vector3d d_rot_extra = Eigen::Vector3d::Zero();
   double d_rho_extra = 0.0;
   if (m != 0.0) {
     if (u_h.z() < 1e-9 || u_t.z() < 1e-9) return false;
     norm_weight += 0.5 * m;
-    log_g += m * std::log(u_t.z() / u_h.z());
-    w.z() += m / u_t.z();
-    d_rho_extra += m * (t_minus_o.z() / u_t.z() + o.z() / u_h.z());
+    sqrt_norm_ratio = std::sqrt(norm_ratio);
+    beam_argument = u_t.z() / u_h.z() * sqrt_norm_ratio;
+    if (derivatives) {
+      w.z() += m / u_t.z();
+      d_rho_extra += m * (t_minus_o.z() / u_t.z() + o.z() / u_h.z());
+    }
   }
   if (normal_host != nullptr) {
     const Eigen::Vector3d Rn = R_target_host * *normal_host;
     const double c_h = -normal_host->dot(u_h);  // |u_h| cos(theta_h)
     const double c_t = -Rn.dot(u_t);
-    if (c_h > kMinLampCosine * std::sqrt(n_h) && c_t > kMinLampCosine * std::sqrt(n_t)) {
+    constexpr double kMinCosineSquared = kMinLampCosine * kMinLampCosine;
+    if (c_h > 0.0 && c_t > 0.0 && c_h * c_h > kMinCosineSquared * n_h && c_t * c_t > kMinCosineSquared * n_t) {
       norm_weight += 0.5;
-      log_g += std::log(c_t / c_h);
-      w += Rn / Rn.dot(u_t);
-      d_rot_extra = Rn.cross(u_t) / Rn.dot(u_t);
-      d_rho_extra += Rn.dot(t_minus_o) / Rn.dot(u_t) + normal_host->dot(o) / normal_host->dot(u_h);
+      if (sqrt_norm_ratio == 0.0) sqrt_norm_ratio = std::sqrt(norm_ratio);
+      other_argument *= sqrt_norm_ratio * c_t / c_h;
+      if (derivatives) {
+        // Rn . u_t = -c_t, n . u_h = -c_h.
+        const double inv_c_t = 1.0 / c_t;
+        w -= inv_c_t * Rn;
+        d_rot_extra = -inv_c_t * Rn.cross(u_t);
+        d_rho_extra -= Rn.dot(t_minus_o) * inv_c_t + normal_host->dot(o) / c_h;
+      }
     }
   }
-  log_g += norm_weight * std::log(n_h / n_t);
-  w += (-2.0 * norm_weight / n_t) * u_t;
+  double log_g = std::log(other_argument);
+  if (m != 0.0) log_g += m * std::log(beam_argument);
   const double gamma = lamp.brightness_exponent;
   out.g = std::exp(gamma * log_g);
-  if (!lamp.derivatives) {
+  if (!derivatives) {
     out.d_log_g_d_pose.setZero();
     out.d_log_g_d_rho = 0.0;
     return true;
   }
+  w += (-2.0 * norm_weight / n_t) * u_t;
   out.d_log_g_d_pose.head<3>() = gamma * rho * w.transpose();
   out.d_log_g_d_pose.tail<3>() = gamma * (q.cross(w) + d_rot_extra).transpose();
   out.d_log_g_d_rho = gamma * (norm_weight * (-2.0 * u_h.dot(o) / n_h - 2.0 * u_t.dot(t_minus_o) / n_t) + d_rho_extra);
@@ -174,7 +193,7 @@ inline double lamp_factor_value(const Eigen::Vector3d& ray, double rho, const Ei
                                 const Eigen::Vector3d& t_target_host, const LampGeometry& lamp,
                                 const Eigen::Vector3d* normal_host = nullptr) {
   LampFactor f;
-  return lamp_factor(ray, rho, R_target_host, t_target_host, lamp, f, normal_host) ? f.g : 1.0;
+  return lamp_factor(ray, rho, R_target_host, t_target_host, lamp, f, normal_host, false) ? f.g : 1.0;
 }
 
 // B(alpha_t)^gamma of the target's view of a point (1 unless lamp.beam_corrected_weights with a

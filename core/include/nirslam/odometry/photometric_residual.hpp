@@ -122,8 +122,8 @@ inline constexpr double kMinLampCosine = 0.2;
 // energy passes), also when lamp.derivatives is set.
 // The three log terms share two logarithms: with s = n_h / n_t,
 //   log g = m log(u_t,z / u_h,z sqrt(s)) + log(s [sqrt(s) c_t / c_h]),
-// the bracket with a normal only; the window calls this twice per residual and the epipolar
-// search at every step, so each logarithm shows in the profile.
+// the bracket with a normal only. The window calls this twice per residual and pass and the
+// epipolar search at every step; the logarithms are a small part of a call (README "Speed").
 inline bool lamp_factor(const Eigen::Vector3d& ray, double rho, const Eigen::Matrix3d& R_target_host,
                         const Eigen::Vector3d& t_target_host, const LampGeometry& lamp, LampFactor& out,
                         const Eigen::Vector3d* normal_host = nullptr, bool with_derivatives = true) {

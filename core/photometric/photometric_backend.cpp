@@ -375,8 +375,17 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
   }
 }
 
+const InverseResponse& PhotometricBackend::inverse_response(const Eigen::Vector4d& c) const {
+  for (const std::optional<InverseResponse>& slot : inverse_cache_)
+    if (slot && slot->coefficients() == c) return *slot;
+  std::optional<InverseResponse>& slot = inverse_cache_[inverse_cache_next_];
+  inverse_cache_next_ = (inverse_cache_next_ + 1) % inverse_cache_.size();
+  slot.emplace(c);
+  return *slot;
+}
+
 void PhotometricBackend::update_u(State& state) const {
-  const InverseResponse inverse(state.c);
+  const InverseResponse& inverse = inverse_response(state.c);
   state.u.resize(observations_.size());
   for (std::size_t i = 0; i < observations_.size(); ++i) state.u[i] = inverse.sqrt_irradiance(observations_[i].grey / 255.0);
 }
@@ -770,7 +779,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   }();
   // X_gauge(c) and dX_gauge/dc.
   const auto gauge = [&](const Eigen::Vector4d& c, Eigen::Vector4d* gradient) {
-    const double u = InverseResponse(c).sqrt_irradiance(gauge_y);
+    const double u = inverse_response(c).sqrt_irradiance(gauge_y);
     if (gradient != nullptr) {
       Eigen::Vector4d h, dh;
       response_basis_in_sqrt_irradiance(u, h, dh);
@@ -798,7 +807,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   while (curvature_first < kCurvatureLevels - 3 && curvature_grey(curvature_first) < step.grey_high - 24.0) ++curvature_first;
   const auto log_curvature = [&](const Eigen::Vector4d& c, Eigen::Matrix<double, kCurvatureLevels - 2, 1>& rho,
                                  Eigen::Matrix<double, kCurvatureLevels - 2, 4>* jacobian) {
-    const InverseResponse inverse(c);
+    const InverseResponse& inverse = inverse_response(c);
     Eigen::Matrix<double, kCurvatureLevels, 1> log_x;
     Eigen::Matrix<double, kCurvatureLevels, 4> d_log_x;
     for (int j = 0; j < kCurvatureLevels; ++j) {

@@ -96,6 +96,7 @@
 // See online_calibration.hpp.
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <deque>
 #include <optional>
@@ -396,6 +397,12 @@ private:
   // Fits var(s) = noise^2 + (dI/d log X)^2 sigma^2 to the scaled residuals of `state` (robust
   // variances in bins of dI/d log X); false when the fit is not determined.
   bool estimate_model_noise(const State& state, double& sigma_log, double& noise_grey) const;
+  // f^-1 for coefficients c: one solve step asks for the same c several times (the residuals' u,
+  // the curvature and gauge priors, at the trial and again when it is linearised), and each
+  // table costs about 8000 evaluations of f. Two slots: the current state's c and the trial's.
+  const InverseResponse& inverse_response(const Eigen::Vector4d& c) const;
+  mutable std::array<std::optional<InverseResponse>, 2> inverse_cache_;
+  mutable std::size_t inverse_cache_next_ = 0;
   int updates_since_multi_start_ = 0;
   double beam_exponent_ = 0.0;  // with options_.beam_halo: the current m
   bool response_fitted_ = false;  // f was estimated at least once

@@ -24,7 +24,7 @@
 #include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/sim/simulator.hpp"
-#include "bilinear_sample.hpp"
+#include "core/bilinear_sample.hpp"
 #include "photometric_sequences.hpp"
 
 namespace nirslam {

@@ -1,0 +1,275 @@
+// The pipeline behind the worker on whole simulated sequences: every stage on a short room
+// sequence with the views it publishes, and issue 8's co-lit runs where the calibration gets the
+// lamp's distances from the odometry.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "nirslam/photometric/calibration_output.hpp"
+#include "nirslam/photometric/response_model.hpp"
+#include "nirslam/pipeline/slam_pipeline.hpp"
+#include "nirslam/sim/simulator.hpp"
+#include "response_error.hpp"
+
+namespace nirslam {
+namespace {
+
+// Every stage on a short simulated room sequence (small frames, so it takes seconds): corrected
+// frames, exposures against the reported ones, the odometry's views.
+TEST(SlamPipelineSequence, CalibratedModeRunsEveryStageAndPublishesViews) {
+  SimulatorOptions sim;
+  sim.scene = sim::SceneKind::Room;
+  sim.width = 320;
+  sim.height = 240;
+  sim.frames = 45;
+  sim.supersampling = 1;
+  // Lamp off, ambient light only: scene radiance is constant, so exposure ratios are observable
+  // (under the co-located lamp they are not, until issue 8's distance term).
+  sim.powers_w = {0.0};
+  sim.ambient_irradiance = 2.0;
+  SimulatedSource source(sim);
+  PipelineOptions options;
+  options.mode = PipelineMode::Calibrated;
+  options.calibration.background_thread = false;  // deterministic for the test
+  SlamPipeline pipeline(options, source.camera(), source.photometric_truth());
+  ASSERT_NE(pipeline.odometry(), nullptr);
+  ASSERT_NE(pipeline.calibration(), nullptr);
+  int frames = 0;
+  int with_pose = 0;
+  while (auto frame = source.next()) {
+    const PipelineFrameResult result = pipeline.process(*frame);
+    ASSERT_EQ(result.corrected.type(), CV_32FC1);
+    ASSERT_EQ(result.corrected.size(), frame->image.size());
+    ASSERT_TRUE(result.photometric.has_value());
+    ASSERT_TRUE(result.odometry.has_value());
+    with_pose += result.odometry->T_world_cam ? 1 : 0;
+    ++frames;
+  }
+  pipeline.finish();
+  EXPECT_EQ(frames, 45);
+  EXPECT_GT(with_pose, 0) << "the odometry initialised";
+
+  const auto photometric = pipeline.photometric_view();
+  EXPECT_TRUE(photometric->enabled);
+  ASSERT_TRUE(photometric->true_response.has_value());
+  ASSERT_EQ(photometric->exposures.size(), 45u);
+  EXPECT_EQ(photometric->exposure_unit, "ms");
+  // The simulator reports its exposures: the estimates follow them.
+  int compared = 0;
+  for (const ExposurePoint& p : photometric->exposures) {
+    if (!std::isfinite(p.estimated)) continue;
+    ASSERT_TRUE(std::isfinite(p.reference));
+    EXPECT_NEAR(p.estimated / p.reference, 1.0, 0.05) << "frame " << p.frame_index;
+    ++compared;
+  }
+  EXPECT_GT(compared, 30);
+
+  const auto trajectory = pipeline.trajectory_view();
+  EXPECT_TRUE(trajectory->enabled);
+  EXPECT_FALSE(trajectory->tracking.empty());
+  EXPECT_EQ(static_cast<int>(trajectory->poses.size()), static_cast<int>(pipeline.odometry()->trajectory().size()));
+  ASSERT_TRUE(trajectory->points != nullptr);
+}
+
+struct LampFeedRun {
+  int frames_with_distances = 0;
+  double median_distance_spread = 0.0;  // per frame: MAD of log(d_odometry / d_true)
+  PhotometricErrors errors;             // of the final estimate against the truth (halo factor V B)
+  // The response in the grey range the back end observed, after the best irradiance scale s
+  // (s G_est against G_true; when the frames never saturate the data fix G only up to s there).
+  double grey_low = 0.0, grey_high = 0.0, irradiance_scale = 1.0, scale_free_mean_grey = 0.0;
+  std::string lamp_term;                // what the photometric view says of it
+  std::string lamp_offset;
+  std::string lamp_beam;
+};
+
+// Issue 8 in the pipeline: under the co-located lamp (the only light) the calibration gets the
+// lamp's distance to its tracked patches from the odometry's points (Illuminated mode). The
+// table runs the lamp alone; the test adds a faint ambient light (0.2 W/m^2), with which the
+// lamp-corrected odometry tracks this short room sequence throughout (with the lamp alone its
+// initialiser, since the four-start change, settled on a structure that lost track after 35
+// frames).
+// Diagnosis of the distances as the calibration uses them (NIRSLAM_PIPELINE_DISTANCE_PROBE=1):
+// true surface points seeded every 10th frame and followed with the true poses for 40 frames;
+// at each, the error of the distance ratio log(d_j / d_k) the map gives against the truth's.
+// Only such ratios along a track enter the calibration's factor (d_ref / d)^2, so a patch's
+// constant bias cancels while a ratio off by 0.1 reads as 20 % brightness.
+class DistanceRatioProbe {
+public:
+  void frame(const Simulator& simulator, const SimulatedFrame& f, const LightDistanceMap& map) {
+    const int k = static_cast<int>(f.frame.index);
+    const auto& camera = *simulator.camera();
+    if (k % 10 == 0)
+      for (int y = 10; y < camera.height(); y += 15)
+        for (int x = 10; x < camera.width(); x += 15) {
+          const float z = f.depth.at<float>(y, x);
+          const auto ray = camera.unproject(Eigen::Vector2d(x, y));
+          if (z > 0.0f && ray) seeds_.push_back({f.T_world_cam * Eigen::Vector3d((z / ray->z()) * *ray), k, std::nullopt});
+        }
+    for (Seed& seed : seeds_) {
+      const int lag = k - seed.born;
+      if (lag > 40) continue;
+      const Eigen::Vector3d p_cam = f.T_world_cam.inverse() * seed.p_world;
+      const auto pixel = camera.project(p_cam);
+      if (!pixel || !camera.contains(*pixel, 2.0)) continue;
+      const auto estimated = map.light_distance(*pixel);
+      const auto truth = simulator.light_distance(f.depth, *pixel);
+      if (!estimated || !truth) continue;
+      if (std::abs(*truth - (p_cam - simulator.options().light_offset_cam).norm()) > 0.05 * *truth) continue;  // hidden
+      const double error = std::log(*estimated / *truth);
+      if (lag == 0) seed.error0 = error;
+      else if (seed.error0) errors_.push_back(std::abs(error - *seed.error0));
+    }
+  }
+  void print(const char* label) {
+    if (errors_.empty()) return;
+    std::sort(errors_.begin(), errors_.end());
+    const auto q = [&](double f) { return errors_[static_cast<std::size_t>(f * static_cast<double>(errors_.size() - 1))]; };
+    const double above = static_cast<double>(errors_.end() - std::upper_bound(errors_.begin(), errors_.end(), 0.3));
+    std::printf("%-14s |error of log(d_j / d_k)| over lags 1-40: median %.3f, 90 %% %.3f, 99 %% %.3f; above 0.3: %.1f %% of %zu\n",
+                label, q(0.5), q(0.9), q(0.99), 100.0 * above / static_cast<double>(errors_.size()), errors_.size());
+  }
+
+private:
+  struct Seed {
+    Eigen::Vector3d p_world;
+    int born;
+    std::optional<double> error0;
+  };
+  std::vector<Seed> seeds_;
+  std::vector<double> errors_;
+};
+
+LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradiance = 0.0) {
+  SimulatorOptions sim;
+  sim.scene = scene;
+  sim.width = 320;
+  sim.height = 240;
+  sim.frames = 120;
+  sim.supersampling = 1;
+  sim.powers_w = {50.0};
+  sim.ambient_irradiance = ambient_irradiance;
+  sim.texture_filtering = TextureFiltering::DistanceIndependent;
+  sim.exposure_ms = 2.0;  // far from the auto-exposure target, so the exposure moves
+  Simulator simulator(sim);
+  PipelineOptions options;
+  options.mode = PipelineMode::Illuminated;
+  options.calibration.background_thread = false;
+  // The lens alone, as a calibration with the lamp off would have given it: the halo factor
+  // splits into it and the beam.
+  options.lens_vignette_file = std::filesystem::temp_directory_path() / "nirslam_pipeline_lens_vignette.png";
+  write_vignette_png(options.lens_vignette_file, simulator.vignette_map());
+  options.lamp_distances_to_calibration = feed;
+  // The map's knobs, to reproduce the README's comparisons (light_distance_map.hpp).
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_MAX_LOG_SPREAD")) options.light_distances.max_log_spread = std::atof(v);
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_DISTANCE_RADIUS")) options.light_distances.search_radius_px = std::atof(v);
+  if (std::getenv("NIRSLAM_PIPELINE_PLANE_FIT") != nullptr) options.light_distances.fit_inverse_depth_plane = true;
+  if (std::getenv("NIRSLAM_PIPELINE_PLANE_NORMAL") != nullptr) options.light_distances.normal_from_inverse_depth_plane = true;
+  options.lamp_cosine_to_calibration = std::getenv("NIRSLAM_PIPELINE_COSINE") != nullptr;
+  SlamPipeline pipeline(options, simulator.camera());
+  LampFeedRun run;
+  PhotometricGroundTruth truth;
+  truth.response = sim.response;
+  truth.vignette = simulator.halo_factor();
+  std::vector<double> spreads;
+  DistanceRatioProbe probe;
+  const bool probing = std::getenv("NIRSLAM_PIPELINE_DISTANCE_PROBE") != nullptr;
+  while (auto f = simulator.next(true)) {
+    truth.exposures.emplace_back(f->frame.index, *f->frame.exposure_ms * f->frame.gain.value_or(1.0));
+    const PipelineFrameResult result = pipeline.process(f->frame);
+    if (probing && result.light_distance_points > 0) probe.frame(simulator, *f, *pipeline.light_distances());
+    if (result.light_distance_points == 0) continue;
+    ++run.frames_with_distances;
+    std::vector<double> log_ratios;
+    for (int y = 10; y < sim.height; y += 12)
+      for (int x = 10; x < sim.width; x += 12) {
+        const Eigen::Vector2d pixel(x, y);
+        const auto estimated = pipeline.light_distances()->light_distance(pixel);
+        const auto true_distance = simulator.light_distance(f->depth, pixel);
+        if (estimated && true_distance) log_ratios.push_back(std::log(*estimated / *true_distance));
+      }
+    if (log_ratios.size() < 20) continue;
+    // Monocular scale: only the spread about the frame's median ratio says how good they are.
+    std::nth_element(log_ratios.begin(), log_ratios.begin() + log_ratios.size() / 2, log_ratios.end());
+    const double median = log_ratios[log_ratios.size() / 2];
+    for (double& r : log_ratios) r = std::abs(r - median);
+    std::nth_element(log_ratios.begin(), log_ratios.begin() + log_ratios.size() / 2, log_ratios.end());
+    spreads.push_back(log_ratios[log_ratios.size() / 2]);
+  }
+  pipeline.finish();
+  if (probing) probe.print(feed ? "fed" : "plain");
+  run.lamp_term = pipeline.photometric_view()->lamp_term;
+  run.lamp_offset = pipeline.photometric_view()->lamp_offset;
+  run.lamp_beam = pipeline.photometric_view()->lamp_beam;
+  if (!spreads.empty()) {
+    std::nth_element(spreads.begin(), spreads.begin() + spreads.size() / 2, spreads.end());
+    run.median_distance_spread = spreads[spreads.size() / 2];
+  }
+  const auto estimate = pipeline.calibration()->estimate();
+  run.errors = compare_with_ground_truth(estimate->response, estimate->vignette, pipeline.calibration()->exposure_history(),
+                                         truth, sim.width, sim.height);
+  run.grey_low = estimate->grey_low;
+  run.grey_high = estimate->grey_high;
+  const auto modulo_scale =
+      test_photometric::response_error_modulo_scale(estimate->response, truth.response, run.grey_low, run.grey_high);
+  run.irradiance_scale = modulo_scale.irradiance_scale;
+  run.scale_free_mean_grey = modulo_scale.mean_grey;
+  return run;
+}
+
+void print(const char* label, const LampFeedRun& r) {
+  std::printf("%-14s distances on %3d frames (spread %.3f) | response %5.2f / %6.2f gl | halo %.4f / %.4f | exposure median %.2f %%\n",
+              label, r.frames_with_distances, r.median_distance_spread, r.errors.response_mean_grey,
+              r.errors.response_max_grey, r.errors.vignette_mean, r.errors.vignette_max,
+              100.0 * r.errors.exposure_median_relative);
+  std::printf("%-14s response in the observed range %.0f-%.0f modulo the irradiance scale (s = %.2f): %5.2f gl\n", "",
+              r.grey_low, r.grey_high, r.irradiance_scale, r.scale_free_mean_grey);
+  std::printf("%-14s %s | %s\n", "", r.lamp_beam.c_str(), r.lamp_offset.c_str());
+}
+
+TEST(SlamPipelineSequence, IlluminatedModeGivesTheCalibrationTheLampDistances) {
+  const LampFeedRun fed = run_co_lit(sim::SceneKind::Room, true, 0.2);
+  const LampFeedRun plain = run_co_lit(sim::SceneKind::Room, false, 0.2);
+  print("room fed", fed);
+  print("room plain", plain);
+  EXPECT_EQ(plain.frames_with_distances, 0);
+  EXPECT_TRUE(plain.lamp_term.empty()) << plain.lamp_term;
+  EXPECT_NE(fed.lamp_term.find("odometry points"), std::string::npos) << fed.lamp_term;
+  // The offset is estimated (and says whether it is determined) where the distances are fed; the
+  // beam is read off the halo factor over the lens vignette in both runs.
+  std::printf("%s\n%s\n%s\n", fed.lamp_offset.c_str(), fed.lamp_beam.c_str(), plain.lamp_beam.c_str());
+  EXPECT_NE(fed.lamp_offset.find("lamp offset"), std::string::npos) << fed.lamp_offset;
+  EXPECT_TRUE(plain.lamp_offset.empty()) << plain.lamp_offset;
+  EXPECT_NE(fed.lamp_beam.find("lamp beam"), std::string::npos) << fed.lamp_beam;
+  // Measured: distances on 113 of 120 frames, spread 0.13-0.19 (the window's points scatter
+  // 10-20 % in depth at 320x240). The calibration errors are printed, not pinned: the response
+  // came out 22.7 -> 4.9 grey levels here, but 21 or 59 after small changes in the odometry
+  // (README, "Photometric calibration accuracy").
+  EXPECT_GT(fed.frames_with_distances, 90);
+  EXPECT_LT(fed.median_distance_spread, 0.25);
+  EXPECT_TRUE(std::isfinite(fed.errors.response_mean_grey));
+  EXPECT_TRUE(std::isfinite(fed.errors.vignette_mean));
+}
+
+// All four scenes (NIRSLAM_PIPELINE_COLIT_TABLE=1 to run it; a few minutes).
+TEST(SlamPipelineSequence, CoLitTable) {
+  if (std::getenv("NIRSLAM_PIPELINE_COLIT_TABLE") == nullptr) GTEST_SKIP() << "set NIRSLAM_PIPELINE_COLIT_TABLE=1";
+  for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
+    for (const bool feed : {false, true}) {
+      const std::string label = std::string(sim::to_string(scene)) + (feed ? " fed" : " plain");
+      if (const char* rows = std::getenv("NIRSLAM_PIPELINE_COLIT_ROWS"); rows != nullptr && std::string(rows).find(label) == std::string::npos) continue;
+      print(label.c_str(), run_co_lit(scene, feed));
+    }
+}
+
+}  // namespace
+}  // namespace nirslam

@@ -57,6 +57,8 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   odometry.read<int>("window_iterations", pipeline.odometry.window_iterations, 1, 50);
   odometry.read<double>("max_tracking_rms", pipeline.odometry.max_tracking_rms, 1.0, 255.0);
   odometry.read<int>("max_frames_between_keyframes", pipeline.odometry.max_frames_between_keyframes, 1, 1000);
+  odometry.read<double>("keyframe_translation_flow_weight", pipeline.odometry.keyframe_translation_flow_weight, 0.0, 1e4);
+  odometry.read<double>("keyframe_full_flow_weight", pipeline.odometry.keyframe_full_flow_weight, 0.0, 1e4);
   odometry.read<double>("affine_a_prior_known_exposure", pipeline.odometry.affine_a_prior_known_exposure, 0.0, 1e12);
   odometry.read<double>("affine_b_prior_known_exposure", pipeline.odometry.affine_b_prior_known_exposure, 0.0, 1e12);
   // The co-located lamp (used by the 'illuminated' and 'odometry-illuminated' modes).

@@ -720,8 +720,8 @@ struct DirectOdometry::Impl {
     ++frames_since_keyframe;
     const double wh = cameras[0].width + cameras[0].height;
     const double brightness = std::abs(best.affine_a - ref->state.affine_a + std::log(exposure / ref->exposure));
-    const double score = options.keyframe_flow_weight * best.flow_translation / wh +
-                         options.keyframe_flow_weight * best.flow_full / wh +
+    const double score = options.keyframe_translation_flow_weight * best.flow_translation / wh +
+                         options.keyframe_full_flow_weight * best.flow_full / wh +
                          options.keyframe_brightness_weight * brightness;
     const bool keyframe = score > 1.0 || 2.0 * reference_first_rms < best.rms ||
                           frames_since_keyframe >= options.max_frames_between_keyframes;

@@ -44,6 +44,10 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_NEAR(config.worker.pipeline.raw_frame_exponent, 1.0 / 2.2, 1e-4);
   EXPECT_TRUE(config.worker.pipeline.odometry.lamp_factor_derivatives);
   EXPECT_TRUE(config.worker.pipeline.odometry.beam_corrected_weights);
+  // The file spells the built-in keyframe weights out; they must stay the same numbers.
+  EXPECT_NEAR(config.worker.pipeline.odometry.keyframe_translation_flow_weight,
+              OdometryOptions{}.keyframe_translation_flow_weight, 1e-9);
+  EXPECT_NEAR(config.worker.pipeline.odometry.keyframe_full_flow_weight, OdometryOptions{}.keyframe_full_flow_weight, 1e-9);
 }
 
 TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {

@@ -50,11 +50,15 @@ struct OdometryOptions {
   double gradient_weight_c = 50.0;      // w = c^2 / (c^2 + |grad I|^2)
   double outlier_energy = 12.0 * 12.0;  // per pattern pixel: a residual above is an outlier
 
-  // Keyframes: a new keyframe when the weighted sum of the mean optical flow (translation
+  // Keyframes: a new keyframe when the weighted sum of the rms optical flow (translation
   // alone, and translation + rotation, as a fraction of w + h) and the brightness change
-  // exceeds 1, or when the tracking residual doubled since the keyframe's first frame.
-  double keyframe_flow_weight = 0.04 * (640 + 480);  // DSO's setting_maxShiftWeight*
-  double keyframe_brightness_weight = 2.0;
+  // exceeds 1, or when the tracking residual doubled since the keyframe's first frame. DSO's
+  // weights: the full flow's is half the translation's, so turning alone makes keyframes half
+  // as often (until session 22 it had the translation's weight: every frame of the street's
+  // turns became a keyframe; README "Speed").
+  double keyframe_translation_flow_weight = 0.04 * (640 + 480);  // DSO's setting_maxShiftWeightT
+  double keyframe_full_flow_weight = 0.02 * (640 + 480);         // DSO's setting_maxShiftWeightRT
+  double keyframe_brightness_weight = 2.0;                       // DSO's setting_maxAffineWeight
   int max_frames_between_keyframes = 30;
 
   // Tracking.

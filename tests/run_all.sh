@@ -24,18 +24,19 @@ configure() {  # configure DIR [cmake args...]
   cmake "${generator[@]}" -S . -B "$dir" -DNIRSLAM_WERROR=ON -DCMAKE_UNITY_BUILD=ON "$@" > "$dir.configure.log" 2>&1 ||
     { cat "$dir.configure.log"; return 1; }
 }
-section() { printf '\n=== %s ===\n' "$*"; }
+section() { printf '\n=== %s (%s, %d s in) ===\n' "$*" "$(date +%T)" "$SECONDS"; }  # times: CI must stay under 30 min
 
-section "Release build, all tests"
+section "Release build"
 mkdir -p build
 configure build -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j"$jobs"
+section "Release: all tests"
 ctest --test-dir build --output-on-failure -j"$jobs"
 
 section "Debian package: build, install, run from outside the source tree, remove"
 packaging/check-package.sh build
 
-section "AddressSanitizer + UndefinedBehaviorSanitizer: unit tests"
+section "AddressSanitizer + UndefinedBehaviorSanitizer: build"
 # -O1 (what the AddressSanitizer documentation recommends for usable speed): the unit tests ran
 # several times faster than at -O0 (60 against about 400 s of wall, 2026-12-02), for 12-25 % more
 # compile CPU per file. GCC 12 gives a false -Wmaybe-uninitialized inside std::variant at -O1
@@ -55,6 +56,7 @@ configure build-asan -DCMAKE_BUILD_TYPE=Debug -DNIRSLAM_SANITIZE=address,undefin
   "-DCMAKE_C_FLAGS_DEBUG=-O1 -g1 -fno-sanitize=null,pointer-overflow,alignment,vptr" \
   -DNIRSLAM_TEST_SHARDS=2 -DNIRSLAM_WHOLE_SEQUENCE_TESTS=OFF
 cmake --build build-asan -j"$jobs" --target nirslam_core_tests nirslam_worker_tests
+section "AddressSanitizer + UndefinedBehaviorSanitizer: unit tests"
 # Each test binary runs as two GoogleTest shards (ctest entries) rather than one process per test:
 # an ASan process spends about half a second loading its ~150 shared libraries, and 406 of them
 # made this stage 169-214 s of wall; as shards it is about 40 s. Every test still runs in its own
@@ -90,9 +92,11 @@ GTEST_FILTER="-$(IFS=:; echo "${release_only[*]}")" \
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
   ctest --test-dir build-asan --output-on-failure -j"$jobs"
 
-section "ThreadSanitizer: worker tests"
+section "ThreadSanitizer: build"
 configure build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DNIRSLAM_SANITIZE=thread -DNIRSLAM_BUILD_UI=OFF \
   "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG"
 cmake --build build-tsan -j"$jobs" --target nirslam_worker_tests
+section "ThreadSanitizer: worker tests"
 TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$PWD/tests/tsan-suppressions.txt" \
   ctest --test-dir build-tsan --output-on-failure -j"$jobs" -L worker
+section "all stages passed"

@@ -76,9 +76,6 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   odometry.read_flag("lamp_factor_derivatives", pipeline.odometry.lamp_factor_derivatives);
   odometry.read_flag("beam_corrected_weights", pipeline.odometry.beam_corrected_weights);
   odometry.read_flag("lamp_in_traces", pipeline.odometry.lamp_in_traces);
-  odometry.read_flag("init_direction_search", pipeline.odometry.init_direction_search);
-  odometry.read<int>("init_search_prune_after_frames", pipeline.odometry.init_search_prune_after_frames, 1, 100);
-  odometry.read<int>("init_search_candidates_kept", pipeline.odometry.init_search_candidates_kept, 0, 1000);
   odometry.read<int>("init_geometric_frames", pipeline.odometry.init_geometric_frames, 0, 60);
   odometry.read_flag("init_hold_geometric_pose", pipeline.odometry.init_hold_geometric_pose);
   odometry.reject_unknown_keys();

@@ -134,25 +134,6 @@ struct DirectOdometry::Impl {
     io.min_parallax_px = options.init_min_parallax_px;
     io.affine_a_prior = 0.1 * a_prior(false);
     io.affine_b_prior = 0.1 * b_prior(false);
-    if (options.init_direction_search) {
-      io.patch_offset_invariant = true;
-      io.joint_refinement = true;
-      io.direction_rings = 3;
-      io.direction_ring_step_deg = 15.0;
-      io.select_by_mean_visible_energy = true;
-      io.frames_after_snap = 8;
-      // The plain path (four starts on plain residuals) decides at its own hand-over frame
-      // whether the search runs at all (vehicle motion: no), is the current state until the
-      // search's hand-over, and is its fallback when no searched hypothesis passes the checks
-      // below, so the search never restarts the initialiser (README, "Odometry benchmark").
-      io.plain_starts = true;
-      io.plain_hand_over_frames = 4;
-      io.hand_over_min_inlier_fraction = options.min_tracking_inlier_fraction;
-      io.hand_over_max_rms = options.max_tracking_rms;
-      io.hand_over_max_abs_affine_a = 1.0;
-      io.prune_after_frames = options.init_search_prune_after_frames;
-      io.candidates_kept = options.init_search_candidates_kept;
-    }
     initializer = std::make_unique<CoarseInitializer>(cameras, io);
     geometric_frames.clear();
     geometric_pending = options.init_geometric_frames > 0;
@@ -564,11 +545,6 @@ struct DirectOdometry::Impl {
       }
     }
 
-    // The frames since the snap as the kept hypothesis has them at the end (jointly refined).
-    for (const auto& [index, T] : initializer->post_snap_poses())
-      if (index >= 0 && static_cast<std::size_t>(index) < init_T_frame_first.size())
-        init_T_frame_first[static_cast<std::size_t>(index)] = T;
-
     // Two keyframes: the first frame with the initialiser's points, and this one.
     const SE3 T_first_world = segment_origin.inverse();
     WindowFrame first;
@@ -648,8 +624,8 @@ struct DirectOdometry::Impl {
     result.T_world_cam = newest.state.T_cam_world.inverse();
     const InitializerTimings& t = initializer->timings();
     char timing[160];
-    std::snprintf(timing, sizeof timing, " (initialiser: %zu hypotheses at the hand-over; %.2f s before the snap, %.2f s aligning, %.2f s joint refinement)",
-                  initializer->hypothesis_count(), t.pre_snap_s, t.align_s, t.joint_s);
+    std::snprintf(timing, sizeof timing, " (initialiser: %zu hypotheses at the hand-over; %.2f s before the snap, %.2f s aligning)",
+                  initializer->hypothesis_count(), t.pre_snap_s, t.align_s);
     result.message = "initialised with " + std::to_string(window->point_count()) + " points" + timing;
     return result;
   }

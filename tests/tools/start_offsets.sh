@@ -11,7 +11,7 @@
 #   OUT        a folder for the runs and results.txt
 #   options    passed to every `nirslam run` (default: --mode odometry)
 # NIRSLAM=path/to/nirslam picks the binary (default: build/nirslam); NIRSLAM_CONFIG=file.yaml is
-# passed as `nirslam --config file.yaml run ...` (e.g. config/init-direction-search.yaml).
+# passed as `nirslam --config file.yaml run ...`.
 set -euo pipefail
 [ $# -ge 2 ] || { sed -n '2,15p' "$0"; exit 2; }
 sequences=$(realpath -m "$1"); out=$(realpath -m "$2"); shift 2

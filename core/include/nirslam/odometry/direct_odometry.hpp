@@ -114,19 +114,6 @@ struct OdometryOptions {
   double init_min_parallax_px = 6.0;    // rms translational flow at level 0 for a 640-wide image
   int init_static_frames = 30;          // initialise without parallax after this many frames
   int init_max_frames = 60;             // restart from a new reference frame after this many
-  // The initialiser's translation-direction search (InitializerOptions: patch-offset-free
-  // residuals, 19 held-direction candidates on 3 cones of 15 degrees, joint refinement over 8
-  // frames after the snap from swept depths, the mean energy in view decides; beside the plain
-  // path, which skips it under vehicle motion and is its fallback). Off: 8-16 s more per room /
-  // tunnel initialisation, too slow for 20 frames/s, and no better than off on the 12-run set
-  // once its checks no longer restart the initialiser (README, "Odometry benchmark").
-  bool init_direction_search = false;
-  // Its candidates pruned after this many frames since the snap to the kept count of lowest
-  // mean energy in view (0 kept: all 19 go on). 4 after 2 frames cut the aligned hypothesis-
-  // frames from 216 to 126 and the refined hypotheses from 23 to 8, but lost the best candidate
-  // on one start of the 12-run set (2.30 % against 2.20 %), so off.
-  int init_search_prune_after_frames = 2;
-  int init_search_candidates_kept = 0;
   // > 0: a geometric start (geometric_start.hpp) over this many frames after the first gives the
   // initialiser each frame's camera-centre direction after its snap. The frames are held back
   // until then and replayed through the initialiser (and the tracking, once it hands over), so

@@ -196,24 +196,28 @@ void evaluate_run(const BenchSequence& sequence, const fs::path& run_dir, std::i
   }
 }
 
-std::int64_t frames_of(const fs::path& run_dir) {
-  std::ifstream in(run_dir / "summary.json");
-  if (!in) return 0;
-  try {
-    return nlohmann::json::parse(in).value("frames_processed", std::int64_t{0});
-  } catch (const std::exception&) {
-    return 0;
-  }
-}
+// What a run's summary.json says; zeros when it is missing or unreadable (the run failed, and
+// its exit code says so).
+struct RunSummary {
+  std::int64_t frames = 0;
+  double frames_per_second = 0.0;
+  int keyframes = 0;
+};
 
-double fps_of(const fs::path& run_dir) {
+RunSummary summary_of(const fs::path& run_dir) {
+  RunSummary summary;
   std::ifstream in(run_dir / "summary.json");
-  if (!in) return 0.0;
+  if (!in) return summary;
   try {
-    return nlohmann::json::parse(in).value("frames_per_second", 0.0);
+    const nlohmann::json json = nlohmann::json::parse(in);
+    summary.frames = json.value("frames_processed", std::int64_t{0});
+    summary.frames_per_second = json.value("frames_per_second", 0.0);
+    if (const auto odometry = json.find("odometry"); odometry != json.end() && odometry->is_object())
+      summary.keyframes = odometry->value("keyframes", 0);
   } catch (const std::exception&) {
-    return 0.0;
+    return {};
   }
+  return summary;
 }
 
 // bench.md's first line when a calibration is given: which files, which part held, in which modes.
@@ -300,19 +304,22 @@ int run_bench(const BenchOptions& o) {
       run.sequence = sequence.name;
       run.mode = mode;
       run.peak_memory_mib = child.peak_memory_mib;
-      run.frames_per_second = fps_of(run_dir);
+      const RunSummary summary = summary_of(run_dir);
+      run.frames_per_second = summary.frames_per_second;
+      run.keyframes = summary.keyframes;
       if (child.exit_code != 0) {
         run.note = fmt::format("run failed (exit {}), see {}", child.exit_code, (run_dir / "run.log").string());
         all_ok = false;
       } else {
-        evaluate_run(sequence, run_dir, frames_of(run_dir), run);
+        evaluate_run(sequence, run_dir, summary.frames, run);
       }
-      std::printf("%s | %.1f fps | %.0f MiB | %.0f s%s\n",
+      std::printf("%s | %.1f fps | %.0f MiB | %.0f s%s%s\n",
                   run.ate_rmse_m ? fmt::format("ATE {:.4f} m ({:.2f} % of {:.1f} m)", *run.ate_rmse_m,
                                                run.ate_percent_of_path().value_or(0.0), run.path_length_m)
                                        .c_str()
                                  : ("no ATE: " + run.note).c_str(),
                   run.frames_per_second, run.peak_memory_mib, child.wall_s,
+                  run.keyframes > 0 ? fmt::format(" | {} keyframes", run.keyframes).c_str() : "",
                   run.segments > 1 ? fmt::format(" | {} segments", run.segments).c_str() : "");
       std::fflush(stdout);
       table.runs.push_back(std::move(run));

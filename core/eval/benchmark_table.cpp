@@ -90,8 +90,8 @@ void write_benchmark_csv(const std::filesystem::path& file, const BenchmarkTable
   if (!out) throw std::runtime_error(file.string() + ": cannot open for writing");
   out << "sequence";
   for (const std::string& mode : table.modes)
-    out << ",ate_m_" << mode << ",segments_" << mode << ",tracked_fraction_" << mode << ",fps_" << mode
-        << ",peak_memory_mib_" << mode;
+    out << ",ate_m_" << mode << ",segments_" << mode << ",keyframes_" << mode << ",tracked_fraction_" << mode
+        << ",fps_" << mode << ",peak_memory_mib_" << mode;
   out << ",path_length_m,improvement_percent\n";
   for (const std::string& sequence : table.sequences) {
     out << sequence;
@@ -99,11 +99,11 @@ void write_benchmark_csv(const std::filesystem::path& file, const BenchmarkTable
     for (const std::string& mode : table.modes) {
       const BenchmarkRun* run = table.find(sequence, mode);
       if (run == nullptr) {
-        out << ",,,,,";
+        out << ",,,,,,";
         continue;
       }
       path = std::max(path, run->path_length_m);
-      out << ',' << formatted_or_blank(run->ate_rmse_m, "{:.6f}") << ',' << run->segments << ','
+      out << ',' << formatted_or_blank(run->ate_rmse_m, "{:.6f}") << ',' << run->segments << ',' << run->keyframes << ','
           << fmt::format("{:.4f}", run->tracked_fraction) << ',' << fmt::format("{:.2f}", run->frames_per_second) << ','
           << fmt::format("{:.1f}", run->peak_memory_mib);
     }

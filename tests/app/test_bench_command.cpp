@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -31,6 +32,18 @@ TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
   const auto csv = lines_of(out / "bench.csv");
   ASSERT_EQ(csv.size(), 2u);
   EXPECT_EQ(csv[1].rfind("Room_50,0.", 0), 0u) << csv[1];
+  // Each mode's keyframe count, from its run's summary: the third column.
+  EXPECT_EQ(csv[0].rfind("sequence,ate_m_odometry,segments_odometry,keyframes_odometry,", 0), 0u) << csv[0];
+  std::vector<std::string> cells;
+  for (std::size_t start = 0, comma = 0; comma != std::string::npos; start = comma + 1) {
+    comma = csv[1].find(',', start);
+    cells.push_back(csv[1].substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+  }
+  ASSERT_GT(cells.size(), 3u) << csv[1];
+  const int keyframes = std::stoi(cells[3]);
+  EXPECT_GE(keyframes, 2) << csv[1];
+  EXPECT_LE(keyframes, 40) << csv[1];
+  EXPECT_NE(r.output.find(" keyframes"), std::string::npos) << "the progress line says how many\n" << r.output;
   EXPECT_TRUE(fs::exists(out / "runs/Room_50/calibrated/trajectory.txt"));
   EXPECT_TRUE(fs::exists(out / "runs/Room_50/illuminated/trajectory.txt"));
 

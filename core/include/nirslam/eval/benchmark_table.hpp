@@ -16,6 +16,7 @@ struct BenchmarkRun {
   std::optional<double> ate_rmse_m;   // after Sim(3) alignment; empty: no ground truth, or no pose
   double path_length_m = 0.0;         // ground truth, over the evaluated poses
   int segments = 0;                   // 1 = tracked throughout; more: lost and re-initialised
+  int keyframes = 0;                  // the odometry's, over the whole run (0: it did not run)
   double tracked_fraction = 0.0;      // frames with a pose in the evaluated segment / frames
   double frames_per_second = 0.0;
   double peak_memory_mib = 0.0;

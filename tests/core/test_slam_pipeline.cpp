@@ -1,19 +1,14 @@
 // The pipeline behind the worker: which stages each mode runs, what it says when a stage cannot
 // run, bad frames. Whole simulated sequences through it: whole_sequence/test_slam_pipeline_sequence.cpp.
 
-#include <algorithm>
-#include <cstdio>
-#include <cstdlib>
-#include <filesystem>
-#include <optional>
-#include <string>
-#include <cmath>
+#include <cstdint>
 #include <memory>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
-#include "nirslam/photometric/response_model.hpp"
 #include "nirslam/pipeline/slam_pipeline.hpp"
 
 namespace nirslam {

@@ -63,7 +63,11 @@ std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::
     const Eigen::Vector2d p0 = from * scale;
     const cv::Mat& image0 = a[static_cast<std::size_t>(level)];
     const cv::Mat& image1 = b[static_cast<std::size_t>(level)];
-    if (!fits(image0, p0, kPatchRadius + 1)) return std::nullopt;
+    if (!fits(image0, p0, kPatchRadius + 1) || !fits(image1, p1, kPatchRadius)) {
+      if (level == 0 || !options.skip_coarse_levels_at_border) return std::nullopt;
+      p1 *= 2.0;
+      continue;
+    }
     for (int i = 0; i < kTemplateSide; ++i)
       for (int j = 0; j < kTemplateSide; ++j)
         templ(i, j) = bilinear_sample(image0, p0.x() + (j - kPatchRadius - 1), p0.y() + (i - kPatchRadius - 1));

@@ -76,6 +76,45 @@ TEST(PhotometricTracker, RecoversSubpixelShiftUnderGainChange) {
   }
 }
 
+// Patches 6-18 px from the border, where the coarsest level (a quarter of the resolution) has no
+// room for the patch: ended without the option, refined from the finer levels with it.
+TEST(PhotometricTracker, PatchesNearTheBorderAreTrackedFromTheFinerLevels) {
+  const cv::Mat base = texture(240, 200, 5);
+  const Eigen::Vector2d shift(1.21, -0.83);
+  PhotometricTrackerOptions options;
+  ASSERT_EQ(options.pyramid_levels, 3);
+  const auto pyramid0 = build_intensity_pyramid(shifted(base, Eigen::Vector2d::Zero(), 1.0), 16, options.pyramid_levels);
+  const auto pyramid1 = build_intensity_pyramid(shifted(base, shift, 1.3), 16, options.pyramid_levels);
+  std::vector<Eigen::Vector2d> near_border;
+  for (const double d : {7.0, 10.0, 14.0, 18.0}) {
+    near_border.emplace_back(d, 100.0);          // left
+    near_border.emplace_back(239.0 - d, 80.0);   // right
+    near_border.emplace_back(120.0, d);          // top
+    near_border.emplace_back(60.0, 199.0 - d);   // bottom
+    near_border.emplace_back(d, d);              // corner
+    near_border.emplace_back(239.0 - d, 199.0 - d);
+  }
+  for (const Eigen::Vector2d& from : near_border)
+    EXPECT_FALSE(track_patch(pyramid0, pyramid1, from, from, options).has_value()) << from.transpose();
+  options.skip_coarse_levels_at_border = true;
+  double worst = 0.0;
+  for (const Eigen::Vector2d& from : near_border) {
+    const auto track = track_patch(pyramid0, pyramid1, from, from, options);
+    ASSERT_TRUE(track.has_value()) << from.transpose();
+    worst = std::max(worst, (track->position - from - shift).norm());
+    EXPECT_NEAR(track->brightness_gain, 1.3, 0.15);
+  }
+  // 0.03-0.08 px along the edges, 0.11 at the corner pixel (7, 7); inside, 0.02-0.08.
+  EXPECT_LT(worst, 0.15);
+  // Inside, where every level fits, the option changes nothing.
+  const Eigen::Vector2d inside(120.0, 100.0);
+  const auto with = track_patch(pyramid0, pyramid1, inside, inside, options);
+  options.skip_coarse_levels_at_border = false;
+  const auto without = track_patch(pyramid0, pyramid1, inside, inside, options);
+  ASSERT_TRUE(with && without);
+  EXPECT_EQ(with->position, without->position);
+}
+
 TEST(PhotometricTracker, TracksSurviveAnExposureStep) {
   const cv::Mat base = texture(320, 240, 11);
   PhotometricTracker tracker;

@@ -130,6 +130,8 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
     options.backend.vignette_steps = options.backend.lit_vignette_steps = chosen;
   }
   if (const char* ncc = std::getenv("NIRSLAM_PHOTOMETRIC_MIN_NCC")) options.tracker.min_reference_ncc = std::atof(ncc);
+  // Tracks near the image border refined from the finer pyramid levels (photometric_tracker.hpp).
+  if (const char* skip = std::getenv("NIRSLAM_PHOTOMETRIC_BORDER_TRACKS")) options.tracker.skip_coarse_levels_at_border = std::atoi(skip) != 0;
   if (const char* mu = std::getenv("NIRSLAM_PHOTOMETRIC_MU")) options.backend.gradient_mu = std::atof(mu);
   if (const char* mu = std::getenv("NIRSLAM_PHOTOMETRIC_LIT_MU")) options.backend.lit_gradient_mu = std::atof(mu);
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_CURVATURE")) options.backend.log_curvature_weight = std::atof(w);

@@ -64,6 +64,13 @@ struct PhotometricTrackerOptions {
   double min_reference_ncc = 0.0;
   double min_brightness_gain = 0.2;        // a outside these: not the same patch
   double max_brightness_gain = 5.0;
+  // Near the image border a coarse pyramid level has no room for the patch (level 2 needs
+  // 4 (kPatchRadius + 1) = 20 px at full resolution), which ended every track there: at 320 x 240
+  // no track got beyond r = 0.85 of the half-diagonal, so the vignette's rim was extrapolated.
+  // On: such levels are skipped and the track is refined from the finer levels only (inter-frame
+  // motion near the border is what the finer levels can still catch; the forward-backward and
+  // residual tests reject the rest).
+  bool skip_coarse_levels_at_border = false;
   double black_level = 0.03;               // for the frame's black / saturated fractions
   double saturation_level = 0.97;
   // Each track's deformation since birth from its neighbours (track_deformation.hpp), for

@@ -45,6 +45,8 @@ inline SimulatorOptions calibration_sequence(sim::SceneKind scene, ResponsePrese
     o.texture_filtering = TextureFiltering::PixelFootprint;
   if (const char* footprint = std::getenv("NIRSLAM_PHOTOMETRIC_FOOTPRINT")) o.texture_footprint_m = std::atof(footprint);
   if (const char* samples = std::getenv("NIRSLAM_PHOTOMETRIC_SUPERSAMPLING")) o.supersampling = std::atoi(samples);
+  // Another draw of the sensor noise: one table is one sample of basins the multi-start can land in.
+  if (const char* seed = std::getenv("NIRSLAM_PHOTOMETRIC_SEED")) o.seed = static_cast<std::uint32_t>(std::strtoul(seed, nullptr, 10));
   return o;
 }
 

@@ -87,6 +87,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read<int>("iterations_per_keyframe", pipeline.calibration.iterations_per_keyframe, 1, 100);
   calibration.read<int>("queue_capacity", pipeline.calibration.queue_capacity, 1, 1000);
   calibration.read<double>("min_exposure_varying_fraction", pipeline.calibration.backend.min_exposure_varying_fraction, 0.0, 1.0);
+  calibration.read_flag("keyframes_follow_surface", pipeline.calibration.keyframes_follow_deformation);
   calibration.read_flag("track_near_border", pipeline.calibration.tracker.skip_coarse_levels_at_border);
   calibration.read<double>("vignette_rim_curvature_weight", pipeline.calibration.backend.vignette_rim_curvature_weight, 0.0, 1e6);
   calibration.read<double>("max_residual_grey", pipeline.calibration.gate.max_residual_rms, 0.0, 255.0);

@@ -25,6 +25,8 @@ void BM_PhotometricOnlineProcess640(benchmark::State& state) {
   static const std::vector<Frame> frames = room_frames(60);
   OnlineCalibrationOptions options;
   options.run_backend = false;  // the caller's thread only
+  // Arg 1: the keyframes' observations follow the surface (the tracker fits each track's deformation).
+  options.keyframes_follow_deformation = state.range(0) != 0;
   OnlinePhotometricCalibration calibration(options);
   std::size_t i = 0;
   for (auto _ : state) {
@@ -32,7 +34,7 @@ void BM_PhotometricOnlineProcess640(benchmark::State& state) {
     if (++i % frames.size() == 0) calibration.reset();
   }
 }
-BENCHMARK(BM_PhotometricOnlineProcess640)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_PhotometricOnlineProcess640)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 void BM_PhotometricBackendUpdate(benchmark::State& state) {
   static const std::vector<Frame> frames = room_frames(120);

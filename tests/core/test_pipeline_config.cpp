@@ -7,6 +7,7 @@
 
 #include "nirslam/common/error.hpp"
 #include "nirslam/config/pipeline_config.hpp"
+#include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/photometric/photometric_tracker.hpp"
 
 namespace nirslam {
@@ -51,6 +52,8 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_NEAR(config.worker.pipeline.odometry.keyframe_full_flow_weight, OdometryOptions{}.keyframe_full_flow_weight, 1e-9);
   EXPECT_EQ(config.worker.pipeline.calibration.tracker.skip_coarse_levels_at_border,
             PhotometricTrackerOptions{}.skip_coarse_levels_at_border);
+  EXPECT_EQ(config.worker.pipeline.calibration.keyframes_follow_deformation,
+            OnlineCalibrationOptions{}.keyframes_follow_deformation);
 }
 
 TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
@@ -102,7 +105,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  lamp_distance_plane_fit: false\n  lamp_cosine_to_calibration: true\nodometry:\n  points_per_frame: 1500\n"
                 "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n"
                 "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"
-                "  track_near_border: true\n"));
+                "  track_near_border: true\n  keyframes_follow_surface: true\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
@@ -111,6 +114,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_EQ(config.worker.pipeline.calibration.iterations_per_keyframe, 2);
   EXPECT_FALSE(config.worker.pipeline.calibration.run_backend);
   EXPECT_TRUE(config.worker.pipeline.calibration.tracker.skip_coarse_levels_at_border);
+  EXPECT_TRUE(config.worker.pipeline.calibration.keyframes_follow_deformation);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 1.0);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.raw_frame_exponent, 0.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.light_distances.max_log_spread, 0.1);

@@ -76,7 +76,7 @@ TEST(PhotometricTracker, RecoversSubpixelShiftUnderGainChange) {
   }
 }
 
-// Patches 6-18 px from the border, where the coarsest level (a quarter of the resolution) has no
+// Patches 7-18 px from the border, where the coarsest level (a quarter of the resolution) has no
 // room for the patch: ended without the option, refined from the finer levels with it.
 TEST(PhotometricTracker, PatchesNearTheBorderAreTrackedFromTheFinerLevels) {
   const cv::Mat base = texture(240, 200, 5);

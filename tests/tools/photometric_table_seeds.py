@@ -28,7 +28,9 @@ ROW = re.compile(r"^(\w+ \w+)\s+span.*?response\s+([\d.]+) /\s+([\d.]+) gl.*?vig
 
 def parse(path):
     rows = {}
-    for line in open(path):
+    with open(path) as lines:
+        lines = list(lines)
+    for line in lines:
         m = ROW.match(line)
         if m:
             rows[m.group(1)] = tuple(float(m.group(i)) for i in range(2, 7))
@@ -64,11 +66,14 @@ def main():
         running = []
         for s in seeds[i:i + 2]:
             env = dict(os.environ, NIRSLAM_PHOTOMETRIC_TABLE="1", NIRSLAM_PHOTOMETRIC_SEED=s)
-            running.append(subprocess.Popen([args.binary, "--gtest_filter=PhotometricAccuracy.Table"], env=env,
-                                            stdout=open(paths[s], "w"), stderr=subprocess.STDOUT))
-        for p in running:
-            if p.wait() != 0:
-                sys.exit(f"{args.binary} failed (rc {p.returncode}); see {out_dir}")
+            out = open(paths[s], "w")
+            running.append((subprocess.Popen([args.binary, "--gtest_filter=PhotometricAccuracy.Table"], env=env,
+                                             stdout=out, stderr=subprocess.STDOUT), out))
+        for p, out in running:
+            rc = p.wait()
+            out.close()
+            if rc != 0:
+                sys.exit(f"{args.binary} failed (rc {rc}); see {out_dir}")
     tables = {s: parse(paths[s]) for s in seeds}
     for s in seeds:
         if not tables[s]:

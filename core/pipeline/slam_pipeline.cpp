@@ -96,6 +96,10 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
   // it and the corrected frames no longer show it: only raw frames need the beam term.
   if (options_.light_offset_estimation.beam_exponent < 0.0)
     options_.light_offset_estimation.beam_exponent = options_.odometry.beam_exponent;
+  if (corrects_illuminator(options_.mode) && options_.lamp_distances_to_calibration) {
+    options_.calibration.keyframes_follow_deformation = options_.lamp_mode_keyframes_follow_surface;
+    options_.calibration.backend.vignette_rim_curvature_weight = options_.lamp_mode_vignette_rim_curvature_weight;
+  }
   const bool given_calibration = runs_calibration(options_.mode) && !options_.given_calibration_folder.empty();
   const double configured_beam_exponent = options_.odometry.beam_exponent;
   if (halo_is_the_beam(options_) && given_calibration)

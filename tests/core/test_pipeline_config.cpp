@@ -54,6 +54,11 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
             PhotometricTrackerOptions{}.skip_coarse_levels_at_border);
   EXPECT_EQ(config.worker.pipeline.calibration.keyframes_follow_deformation,
             OnlineCalibrationOptions{}.keyframes_follow_deformation);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.vignette_rim_curvature_weight,
+                   PhotometricBackendOptions{}.vignette_rim_curvature_weight);
+  EXPECT_EQ(config.worker.pipeline.lamp_mode_keyframes_follow_surface, PipelineOptions{}.lamp_mode_keyframes_follow_surface);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_vignette_rim_curvature_weight,
+                   PipelineOptions{}.lamp_mode_vignette_rim_curvature_weight);
 }
 
 TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
@@ -105,7 +110,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  lamp_distance_plane_fit: false\n  lamp_cosine_to_calibration: true\nodometry:\n  points_per_frame: 1500\n"
                 "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n"
                 "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"
-                "  track_near_border: true\n  keyframes_follow_surface: true\n"));
+                "  track_near_border: true\n  keyframes_follow_surface: false\n  vignette_rim_curvature_weight: 0.25\n"
+                "  lamp_mode_keyframes_follow_surface: true\n  lamp_mode_vignette_rim_curvature_weight: 0.5\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
@@ -114,7 +120,10 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_EQ(config.worker.pipeline.calibration.iterations_per_keyframe, 2);
   EXPECT_FALSE(config.worker.pipeline.calibration.run_backend);
   EXPECT_TRUE(config.worker.pipeline.calibration.tracker.skip_coarse_levels_at_border);
-  EXPECT_TRUE(config.worker.pipeline.calibration.keyframes_follow_deformation);
+  EXPECT_FALSE(config.worker.pipeline.calibration.keyframes_follow_deformation);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.vignette_rim_curvature_weight, 0.25);
+  EXPECT_TRUE(config.worker.pipeline.lamp_mode_keyframes_follow_surface);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_vignette_rim_curvature_weight, 0.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 1.0);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.raw_frame_exponent, 0.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.light_distances.max_log_spread, 0.1);

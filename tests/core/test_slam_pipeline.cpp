@@ -72,6 +72,39 @@ TEST(SlamPipeline, ModesChooseCalibrationAndTheLampFactor) {
   EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().brightness_exponent, 0.6);
 }
 
+TEST(SlamPipeline, TheLampModeCalibratesOnAFixedGridWithAFreeRim) {
+  PipelineOptions options;
+  options.calibration.background_thread = false;
+  options.calibration.keyframes_follow_deformation = true;
+  options.calibration.backend.vignette_rim_curvature_weight = 1.0;
+  options.mode = PipelineMode::Calibrated;
+  {
+    const SlamPipeline calibrated(options, pinhole(64, 48));
+    EXPECT_TRUE(calibrated.options().calibration.keyframes_follow_deformation);
+    EXPECT_DOUBLE_EQ(calibrated.options().calibration.backend.vignette_rim_curvature_weight, 1.0);
+  }
+  options.mode = PipelineMode::Illuminated;
+  {
+    const SlamPipeline lamp(options, pinhole(64, 48));
+    EXPECT_FALSE(lamp.options().calibration.keyframes_follow_deformation);
+    EXPECT_DOUBLE_EQ(lamp.options().calibration.backend.vignette_rim_curvature_weight, 0.0);
+  }
+  options.lamp_mode_keyframes_follow_surface = true;
+  options.lamp_mode_vignette_rim_curvature_weight = 0.5;
+  {
+    const SlamPipeline lamp(options, pinhole(64, 48));
+    EXPECT_TRUE(lamp.options().calibration.keyframes_follow_deformation);
+    EXPECT_DOUBLE_EQ(lamp.options().calibration.backend.vignette_rim_curvature_weight, 0.5);
+  }
+  // Without the lamp's distances the illuminated mode's calibration assumes constant radiance,
+  // as the calibrated mode's does, and takes its settings.
+  options.lamp_distances_to_calibration = false;
+  options.lamp_mode_keyframes_follow_surface = false;
+  const SlamPipeline constant_radiance(options, pinhole(64, 48));
+  EXPECT_TRUE(constant_radiance.options().calibration.keyframes_follow_deformation);
+  EXPECT_DOUBLE_EQ(constant_radiance.options().calibration.backend.vignette_rim_curvature_weight, 1.0);
+}
+
 TEST(SlamPipeline, QualityModeRunsNoStage) {
   PipelineOptions options;
   options.mode = PipelineMode::Quality;

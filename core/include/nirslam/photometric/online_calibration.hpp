@@ -158,8 +158,11 @@ struct OnlineCalibrationOptions {
   std::optional<std::pair<double, double>> initial_grey_range;
   // The back end's keyframe observations follow the surface (keyframe_selection.hpp), with the
   // tracks' deformation the tracker estimates (track_deformation.hpp; shared with the exposure
-  // estimator's follow_deformation). Measured: README "Photometric calibration accuracy".
-  bool keyframes_follow_deformation = false;
+  // estimator's follow_deformation). On: over three noise draws of the lamp-off table, with the
+  // back end's straight rim (vignette_rim_curvature_weight), better on response and vignette in
+  // every draw. The pipeline's illuminated mode turns both off (PipelineOptions::lamp_mode_*):
+  // there they cost the lamp mode's ATE (README "Photometric calibration accuracy").
+  bool keyframes_follow_deformation = true;
   // Fraction of full scale at or above which a keyframe sample counts as saturated (the back end's
   // one-sided constraint e V a L >= G(level), photometric_backend.hpp); negative: the tracker's
   // saturation_level. Only the true clip (full scale) says something about the irradiance scale:

@@ -98,6 +98,15 @@ struct PipelineOptions {
   bool lamp_distances_to_calibration = true;
   // ... and cos(theta) from planes fitted to the points (patches where no plane fits are left out).
   bool lamp_cosine_to_calibration = false;
+  // The calibration's settings in that case (the illuminated mode with lamp distances), in place
+  // of calibration.keyframes_follow_deformation and backend.vignette_rim_curvature_weight, which
+  // hold for the other modes: following the surface with a straight rim is better without the
+  // lamp model (three noise draws of the lamp-off table) and worse in the lamp mode (Table 2
+  // 0.0260 -> 0.0292 m, halo factor 0.034 -> 0.069; README "Photometric calibration accuracy").
+  // A rule of the mode, not of each keyframe: the mode's first keyframes come before the
+  // odometry has distances.
+  bool lamp_mode_keyframes_follow_surface = false;
+  double lamp_mode_vignette_rim_curvature_weight = 0.0;
   LightDistanceMapOptions light_distances;
   // The lamp's offset from the camera centre (Illuminated mode): when odometry.light_offset is
   // not configured, estimated at every keyframe from the recent keyframes (keyframe_light_offset.hpp)

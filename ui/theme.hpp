@@ -38,6 +38,7 @@ inline constexpr ImU32 banner_dark = rgba(226, 160, 40);        // the frame is 
 inline constexpr ImU32 estimate = rgba(245, 158, 50);            // photometric estimates: curves, exposure
 inline constexpr ImU32 ground_truth = rgba(190, 196, 206);       // the true curve / value, when known
 inline constexpr ImU32 keyframe_mark = rgba(70, 150, 230);      // frames handed to the back end
+inline constexpr ImU32 unmeasured_band = rgba(150, 157, 168, 36);  // where a curve is a continuation, not data
 inline constexpr ImU32 state_running = rgba(72, 196, 112);
 inline constexpr ImU32 state_paused = rgba(236, 176, 58);
 inline constexpr ImU32 state_idle = rgba(120, 127, 138);

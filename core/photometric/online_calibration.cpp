@@ -348,6 +348,7 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
   const bool adopted = step.ok && step.updated && rejection.empty();
   e->grey_low = adopted ? step.grey_low : previous->grey_low;
   e->grey_high = adopted ? step.grey_high : previous->grey_high;
+  e->radius_high = adopted ? step.radius_high : previous->radius_high;
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     e->keyframes_dropped = dropped_;

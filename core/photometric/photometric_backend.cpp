@@ -639,6 +639,12 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     step.grey_low = *lo;
     std::nth_element(greys.begin(), hi, greys.end());
     step.grey_high = *hi;
+    std::vector<double> radii;
+    radii.reserve(observations_.size());
+    for (const Observation& o : observations_) radii.push_back(o.radius);
+    const auto top = radii.begin() + static_cast<std::ptrdiff_t>(radii.size() - 1 - radii.size() / 100);
+    std::nth_element(radii.begin(), top, radii.end());
+    step.radius_high = std::min(*top, 1.0);
   }
 
   // Exposures, divided by their median so the numbers stay near 1 whatever the unit; free or held.
@@ -850,12 +856,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   double rim_weight = 0.0;
   Eigen::Matrix<double, kRimRadii, 3> rim_jacobian = Eigen::Matrix<double, kRimRadii, 3>::Zero();
   if (step.vignette_estimated && !monotone_steps && !beam_steps && options_.vignette_rim_curvature_weight > 0.0) {
-    std::vector<double> radii;
-    radii.reserve(observations_.size());
-    for (const Observation& o : observations_) radii.push_back(o.radius);
-    const auto top = radii.begin() + static_cast<std::ptrdiff_t>(radii.size() - 1 - radii.size() / 100);
-    std::nth_element(radii.begin(), top, radii.end());
-    const double r_high = std::min(*top, 1.0);
+    const double r_high = step.radius_high;
     rim_weight = options_.vignette_rim_curvature_weight * nobs * (1.0 - r_high);
     for (int j = 0; j < kRimRadii; ++j) {
       const double r = r_high + (1.0 - r_high) * j / (kRimRadii - 1.0);

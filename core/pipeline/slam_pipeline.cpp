@@ -416,6 +416,9 @@ std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
     view->ambiguity = std::string(to_string(estimate->ambiguity)) +
                       (estimate->ambiguity_detail.empty() ? "" : ": " + estimate->ambiguity_detail);
     view->status = estimate->status;
+    view->grey_low = estimate->grey_low;
+    view->grey_high = estimate->grey_high;
+    view->radius_high = estimate->radius_high;
     if (light_distances_)
       view->lamp_term = light_distance_points_ > 0
                             ? fmt::format("lamp term: {} odometry points", light_distance_points_)

@@ -1,8 +1,10 @@
 // `nirslam calibrate`: DSO/TUM monoVO output and errors against a simulated sequence's ground truth.
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
 #include "cli_runner.hpp"
@@ -33,6 +35,18 @@ TEST(CalibrateCommand, WritesDsoFilesAndErrorsForASimulatedSequence) {
   EXPECT_EQ(lines_of(dir / "out" / "times.txt").size(), 40u);
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "calibration.json"));
   EXPECT_TRUE(std::filesystem::exists(dir / "c.json"));
+  // Where the curves are measured and where they are continuations.
+  EXPECT_NE(r.output.find("measured over grey"), std::string::npos) << r.output;
+  std::ifstream calibration_file(dir / "out" / "calibration.json");
+  const auto calibration = nlohmann::json::parse(calibration_file);
+  const auto& observed = calibration.at("observed");
+  const double grey_low = observed.at("grey_range").at(0), grey_high = observed.at("grey_range").at(1);
+  EXPECT_GE(grey_low, 0.0);
+  EXPECT_GT(grey_high, grey_low + 20.0);
+  EXPECT_LE(grey_high, 255.0);
+  const double radius = observed.at("vignette_max_radius");
+  EXPECT_GT(radius, 0.3);
+  EXPECT_LE(radius, 1.0);
   EXPECT_NE(r.output.find("lamp beam"), std::string::npos) << r.output;
   EXPECT_FALSE(read_vignette_png(dir / "out" / "beam.png").empty());
   const auto beam = lines_of(dir / "out" / "beam.json");

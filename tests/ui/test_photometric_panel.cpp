@@ -148,6 +148,52 @@ TEST_F(PhotometricPanelTest, ExposureHistoryAndKeyframesAreDrawn) {
   EXPECT_GT(testing::count_colour(shot, plot, colours::keyframe_mark, 20), 10);
 }
 
+// Outside the grey range and beyond the radius the back end's samples reach, the curves are the
+// model's continuation: the plots shade those parts, the map washes out its corners.
+TEST_F(PhotometricPanelTest, UnmeasuredPartsOfTheCurvesAreShaded) {
+  Snapshot snapshot;
+  auto view = estimate_view();
+  snapshot.photometric = view;
+  PhotometricPanel plain;
+  const cv::Mat before = render(plain, snapshot);
+  view->grey_low = 40.0;
+  view->grey_high = 150.0;
+  view->radius_high = 0.7;
+  PhotometricPanel panel;
+  const cv::Mat shot = render(panel, snapshot);
+  // Mean brightness (r + g + b) of a 5 x 5 box at data position (u, v) of a plot.
+  const auto brightness = [](const cv::Mat& image, const ScreenRect& area, double u, double v) {
+    const int cx = static_cast<int>(area.min.x + u * area.width());
+    const int cy = static_cast<int>(area.max.y - v * area.height());
+    int sum = 0;
+    for (int dy = -2; dy <= 2; ++dy)
+      for (int dx = -2; dx <= 2; ++dx) {
+        const testing::Rgb c = pixel(image, cx + dx, cy + dy);
+        sum += c.r + c.g + c.b;
+      }
+    return sum / 25;
+  };
+  // Background away from the curves and grid lines: grey 13 (below the range) against grey 102
+  // (inside) on the inverse response; r = 0.9 against r = 0.3 on the vignette.
+  const ScreenRect& inverse = panel.inverse_plot_rect();
+  const ScreenRect& vignette = panel.vignette_plot_rect();
+  EXPECT_GT(brightness(shot, inverse, 0.05, 0.6), brightness(shot, inverse, 0.4, 0.6) + 12);
+  EXPECT_EQ(brightness(shot, inverse, 0.4, 0.6), brightness(before, plain.inverse_plot_rect(), 0.4, 0.6));
+  EXPECT_GT(brightness(shot, inverse, 0.9, 0.1), brightness(before, plain.inverse_plot_rect(), 0.9, 0.1) + 12);
+  EXPECT_GT(brightness(shot, vignette, 0.9, 0.12), brightness(shot, vignette, 0.3, 0.12) + 12);
+  // The response f over irradiance: shaded above G(150) (0.36 for this gamma estimate).
+  const ScreenRect& response = panel.response_plot_rect();
+  EXPECT_GT(brightness(shot, response, 0.9, 0.3), brightness(before, plain.response_plot_rect(), 0.9, 0.3) + 12);
+  // The map: corners washed out (brighter than without), the centre as before.
+  const ScreenRect& map = panel.vignette_map_rect();
+  const auto at = [](const cv::Mat& image, float x, float y) {
+    const testing::Rgb c = pixel(image, static_cast<int>(x), static_cast<int>(y));
+    return c.r + c.g + c.b;
+  };
+  EXPECT_GT(at(shot, map.max.x - 3.0f, map.min.y + 3.0f), at(before, map.max.x - 3.0f, map.min.y + 3.0f) + 12);
+  EXPECT_EQ(at(shot, map.centre().x, map.centre().y), at(before, map.centre().x, map.centre().y));
+}
+
 TEST_F(PhotometricPanelTest, SaysSoWhenCalibrationIsOff) {
   Snapshot snapshot;
   snapshot.photometric = std::make_shared<PhotometricView>();  // enabled = false

@@ -15,7 +15,7 @@
 namespace nirslam::ui {
 namespace {
 
-void legend(bool with_truth) {
+void legend(bool with_truth, bool with_unmeasured) {
   ImDrawList* draw = ImGui::GetWindowDrawList();
   const auto swatch = [&](ImU32 colour, const char* text) {
     const ImVec2 p = ImGui::GetCursorScreenPos();
@@ -30,6 +30,31 @@ void legend(bool with_truth) {
     ImGui::SameLine(0.0f, 12.0f);
     swatch(colours::ground_truth, "ground truth");
   }
+  if (with_unmeasured) {
+    ImGui::SameLine(0.0f, 12.0f);
+    const ImVec2 p = ImGui::GetCursorScreenPos();
+    const float h = ImGui::GetTextLineHeight();
+    draw->AddRectFilled(ImVec2(p.x, p.y + 0.15f * h), ImVec2(p.x + 16.0f, p.y + 0.85f * h), colours::unmeasured_band);
+    ImGui::Dummy(ImVec2(20.0f, h));
+    ImGui::SameLine(0.0f, 2.0f);
+    ImGui::TextColored(to_vec4(colours::text_dim), "not measured");
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("Outside the grey range and beyond the radius the back end's samples reach (1st-99th\n"
+                        "percentile), the curves are the model's continuation, not data");
+  }
+}
+
+// Shades the parts of a plot's x range outside [measured_lo, measured_hi]: there the curve is the
+// model's continuation. Nothing when the range is unknown (empty).
+void shade_unmeasured(const ScreenRect& area, double x_min, double x_max, double measured_lo, double measured_hi) {
+  if (area.empty() || !(measured_hi > measured_lo) || !(x_max > x_min)) return;
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  const auto x_of = [&](double x) {
+    return area.min.x + static_cast<float>(std::clamp((x - x_min) / (x_max - x_min), 0.0, 1.0)) * area.width();
+  };
+  const float lo = x_of(measured_lo), hi = x_of(measured_hi);
+  if (lo > area.min.x + 0.5f) draw->AddRectFilled(area.min, ImVec2(lo, area.max.y), colours::unmeasured_band);
+  if (hi < area.max.x - 0.5f) draw->AddRectFilled(ImVec2(hi, area.min.y), area.max, colours::unmeasured_band);
 }
 
 // Ticks at 0, 1/n, ... of a range, so every small plot reads the same way.
@@ -106,7 +131,8 @@ void PhotometricPanel::draw_status(const PhotometricView& view) {
     ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.status.empty() ? "no back-end estimate yet" : view.status.c_str());
   // The legend and the lamp term before the long ambiguity text, so a narrow window clips that.
   ImGui::SameLine(0.0f, 16.0f);
-  legend(view.true_response.has_value() || view.true_vignette.has_value());
+  legend(view.true_response.has_value() || view.true_vignette.has_value(),
+         view.grey_high > view.grey_low || view.radius_high > 0.0);
   if (!view.lamp_term.empty()) {
     ImGui::SameLine(0.0f, 16.0f);
     ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.lamp_term.c_str());
@@ -166,6 +192,9 @@ void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
     PlotAxes axes = grey_axes;
     axes.x_caption = "irradiance (0..1)";
     response_plot_ = curve("##response", axes, x_unit_, response_, response_true_);
+    if (view.grey_high > view.grey_low)
+      shade_unmeasured(response_plot_, 0.0, 1.0, view.response.inverse(view.grey_low / 255.0),
+                       view.response.inverse(view.grey_high / 255.0));
   });
   ImGui::SameLine();
   cell("Inverse response G (pcalib)", [&] {
@@ -173,6 +202,7 @@ void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
     axes.x_max = 255.0;
     axes.x_caption = "grey level";
     inverse_plot_ = curve("##inverse", axes, x_grey_, inverse_, inverse_true_);
+    shade_unmeasured(inverse_plot_, 0.0, 255.0, view.grey_low, view.grey_high);
   });
   ImGui::SameLine();
   cell("Vignette V(r)", [&] {
@@ -186,6 +216,7 @@ void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
     axes.y_decimals = 2;
     axes.x_caption = "radius (corner = 1)";
     vignette_plot_ = curve("##vignette", axes, x_unit_, vignette_, vignette_true_);
+    if (view.radius_high > 0.0) shade_unmeasured(vignette_plot_, 0.0, 1.0, 0.0, view.radius_high);
   });
   ImGui::SameLine();
   cell("Vignette map", [&] { draw_vignette_map(view, ImVec2(map_width, plot_height)); });
@@ -212,7 +243,14 @@ void PhotometricPanel::draw_vignette_map(const PhotometricView& view, ImVec2 siz
       const ImVec2 a(vignette_map_.min.x + w * col / kCols, vignette_map_.min.y + h * row / kRows);
       const ImVec2 b(vignette_map_.min.x + w * (col + 1) / kCols + 0.5f, vignette_map_.min.y + h * (row + 1) / kRows + 0.5f);
       draw->AddRectFilled(a, b, heat_colour(0.15f + 0.85f * t));
+      if (view.radius_high > 0.0 && r > view.radius_high) draw->AddRectFilled(a, b, colours::unmeasured_band);
     }
+  if (view.radius_high > 0.0) {  // the edge of the measured disc (radius over the half-diagonal)
+    draw->PushClipRect(vignette_map_.min, vignette_map_.max, true);
+    draw->AddCircle(vignette_map_.centre(), static_cast<float>(view.radius_high) * 0.5f * std::hypot(w, h),
+                    colours::text_dim, 96, 1.0f);
+    draw->PopClipRect();
+  }
   draw->AddRect(vignette_map_.min, vignette_map_.max, colours::border);
   const std::string label = fmt::format("corners {:.2f}", corner);
   const ImVec2 text = ImGui::CalcTextSize(label.c_str());

@@ -72,6 +72,7 @@ struct PhotometricEstimate {  // immutable once published
   double backend_ms = 0.0;       // wall time of the optimisation that produced this estimate
   double grey_low = 0.0;         // 1st / 99th percentile of the grey values the fit saw: the
   double grey_high = 0.0;        // response is extrapolated outside this range
+  double radius_high = 0.0;      // 99th percentile of the samples' radius: V is continued beyond
   std::vector<std::pair<std::int64_t, double>> keyframe_exposures;  // frame index -> exposure (back end)
   // The lamp's beam exponent m when the halo factor is a held lens vignette times cos(alpha)^m
   // (PhotometricBackendOptions::beam_halo); std::nullopt otherwise.

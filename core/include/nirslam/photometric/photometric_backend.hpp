@@ -316,6 +316,9 @@ struct BackendStep {
   bool multi_started = false;  // several starting responses were probed
   double grey_low = 0.0;     // 1st and 99th percentile of the observed grey values: f is
   double grey_high = 0.0;    // constrained by data only in between (extrapolated outside)
+  // 99th percentile of the samples' radius (corner = 1): V is constrained by data only inside
+  // (tracks seldom reach the corners); beyond, the model's continuation.
+  double radius_high = 0.0;
   std::string status;        // what happened, and why not when nothing was estimated
 };
 

@@ -35,6 +35,11 @@ struct PhotometricView {
   std::string status;            // convergence status, or why there is no estimate yet
   std::string exposure_status;   // the last frame's exposure estimate: "estimated", or why not
   std::string exposure_unit = "ms";  // "ms" when anchored to reported exposures, else "relative"
+  // Where the data constrain the curves (PhotometricEstimate): the grey range of the back end's
+  // samples and their largest radius; outside, the curves are continuations. 0 / 0 / 0: unknown.
+  double grey_low = 0.0;
+  double grey_high = 0.0;
+  double radius_high = 0.0;
   // The lamp's distance term (Illuminated mode): from how many odometry points the last frame's
   // distances came, or what it waits for; empty when the mode has no such term.
   std::string lamp_term;

@@ -59,6 +59,7 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_EQ(config.worker.pipeline.lamp_mode_keyframes_follow_surface, PipelineOptions{}.lamp_mode_keyframes_follow_surface);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_vignette_rim_curvature_weight,
                    PipelineOptions{}.lamp_mode_vignette_rim_curvature_weight);
+  EXPECT_EQ(config.worker.pipeline.lamp_mode_track_near_border, PipelineOptions{}.lamp_mode_track_near_border);
 }
 
 TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
@@ -111,7 +112,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n"
                 "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"
                 "  track_near_border: true\n  keyframes_follow_surface: false\n  vignette_rim_curvature_weight: 0.25\n"
-                "  lamp_mode_keyframes_follow_surface: true\n  lamp_mode_vignette_rim_curvature_weight: 0.5\n"));
+                "  lamp_mode_keyframes_follow_surface: true\n  lamp_mode_vignette_rim_curvature_weight: 0.5\n"
+                "  lamp_mode_track_near_border: false\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
@@ -124,6 +126,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.vignette_rim_curvature_weight, 0.25);
   EXPECT_TRUE(config.worker.pipeline.lamp_mode_keyframes_follow_surface);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_vignette_rim_curvature_weight, 0.5);
+  EXPECT_FALSE(config.worker.pipeline.lamp_mode_track_near_border);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 1.0);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.raw_frame_exponent, 0.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.light_distances.max_log_spread, 0.1);

@@ -72,9 +72,11 @@ TEST(SlamPipeline, ModesChooseCalibrationAndTheLampFactor) {
   EXPECT_DOUBLE_EQ(SlamPipeline(options, pinhole(64, 48)).odometry()->options().brightness_exponent, 0.6);
 }
 
-TEST(SlamPipeline, TheLampModeCalibratesOnAFixedGridWithAFreeRim) {
+TEST(SlamPipeline, TheLampModeTakesItsOwnCalibrationSettings) {
   PipelineOptions options;
   options.calibration.background_thread = false;
+  options.calibration.tracker.skip_coarse_levels_at_border = false;
+  options.lamp_mode_track_near_border = true;
   options.calibration.keyframes_follow_deformation = true;
   options.calibration.backend.vignette_rim_curvature_weight = 1.0;
   options.mode = PipelineMode::Calibrated;
@@ -82,19 +84,23 @@ TEST(SlamPipeline, TheLampModeCalibratesOnAFixedGridWithAFreeRim) {
     const SlamPipeline calibrated(options, pinhole(64, 48));
     EXPECT_TRUE(calibrated.options().calibration.keyframes_follow_deformation);
     EXPECT_DOUBLE_EQ(calibrated.options().calibration.backend.vignette_rim_curvature_weight, 1.0);
+    EXPECT_FALSE(calibrated.options().calibration.tracker.skip_coarse_levels_at_border);
   }
   options.mode = PipelineMode::Illuminated;
   {
     const SlamPipeline lamp(options, pinhole(64, 48));
     EXPECT_FALSE(lamp.options().calibration.keyframes_follow_deformation);
     EXPECT_DOUBLE_EQ(lamp.options().calibration.backend.vignette_rim_curvature_weight, 0.0);
+    EXPECT_TRUE(lamp.options().calibration.tracker.skip_coarse_levels_at_border);
   }
   options.lamp_mode_keyframes_follow_surface = true;
   options.lamp_mode_vignette_rim_curvature_weight = 0.5;
+  options.lamp_mode_track_near_border = false;
   {
     const SlamPipeline lamp(options, pinhole(64, 48));
     EXPECT_TRUE(lamp.options().calibration.keyframes_follow_deformation);
     EXPECT_DOUBLE_EQ(lamp.options().calibration.backend.vignette_rim_curvature_weight, 0.5);
+    EXPECT_FALSE(lamp.options().calibration.tracker.skip_coarse_levels_at_border);
   }
   // Without the lamp's distances the illuminated mode's calibration assumes constant radiance,
   // as the calibrated mode's does, and takes its settings.
@@ -103,6 +109,7 @@ TEST(SlamPipeline, TheLampModeCalibratesOnAFixedGridWithAFreeRim) {
   const SlamPipeline constant_radiance(options, pinhole(64, 48));
   EXPECT_TRUE(constant_radiance.options().calibration.keyframes_follow_deformation);
   EXPECT_DOUBLE_EQ(constant_radiance.options().calibration.backend.vignette_rim_curvature_weight, 1.0);
+  EXPECT_FALSE(constant_radiance.options().calibration.tracker.skip_coarse_levels_at_border);
 }
 
 TEST(SlamPipeline, QualityModeRunsNoStage) {

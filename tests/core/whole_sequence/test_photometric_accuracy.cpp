@@ -15,6 +15,7 @@
 #include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/photometric/illumination_factor.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
+#include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/sim/scene.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "photometric_sequences.hpp"
@@ -121,11 +122,12 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   options.background_thread = false;  // deterministic
   options.use_reported_exposures = use_reported_exposures;
   options.correct_images = false;
-  // The pipeline's rule (PipelineOptions::lamp_mode_*): with the lamp's distances, the keyframe
-  // samples on a fixed grid and V's rim free.
+  // The pipeline's rule: with the lamp's distances, the illuminated mode's own settings.
   if (light_factor) {
-    options.keyframes_follow_deformation = false;
-    options.backend.vignette_rim_curvature_weight = 0.0;
+    const PipelineOptions lamp_mode;
+    options.keyframes_follow_deformation = lamp_mode.lamp_mode_keyframes_follow_surface;
+    options.backend.vignette_rim_curvature_weight = lamp_mode.lamp_mode_vignette_rim_curvature_weight;
+    options.tracker.skip_coarse_levels_at_border = lamp_mode.lamp_mode_track_near_border;
   }
   if (const char* probe = std::getenv("NIRSLAM_PHOTOMETRIC_PROBE")) options.backend.multi_start_probe_iterations = std::atoi(probe);
   if (const char* gauge = std::getenv("NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT")) options.backend.gamma_gauge_weight = std::atof(gauge);

@@ -69,7 +69,8 @@ struct PhotometricTrackerOptions {
   // no track got beyond r = 0.85 of the half-diagonal, so the vignette's rim was extrapolated.
   // On: such levels are skipped and the track is refined from the finer levels only (inter-frame
   // motion near the border is what the finer levels can still catch; the forward-backward and
-  // residual tests reject the rest).
+  // residual tests reject the rest). The pipeline's illuminated mode takes
+  // PipelineOptions::lamp_mode_track_near_border instead.
   bool skip_coarse_levels_at_border = false;
   double black_level = 0.03;               // for the frame's black / saturated fractions
   double saturation_level = 0.97;

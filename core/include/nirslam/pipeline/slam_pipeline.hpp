@@ -107,6 +107,12 @@ struct PipelineOptions {
   // odometry has distances.
   bool lamp_mode_keyframes_follow_surface = false;
   double lamp_mode_vignette_rim_curvature_weight = 0.0;
+  // ... and of calibration.tracker.skip_coarse_levels_at_border (the calibration's tracks kept up
+  // to the image border, where the lamp's halo factor falls steepest). Off: on, Table 2's lamp
+  // mode went 0.0260 -> 0.0238 m but was better on 6 of 12 only (parking 20 W 0.71 -> 0.36 % of
+  // the path, parking 50 / 100 W worse), and the co-lit calibration with the true distances and
+  // cosine lost its vignette (room 0.0037 -> 0.044; README "Illuminator correction", session 24).
+  bool lamp_mode_track_near_border = false;
   LightDistanceMapOptions light_distances;
   // The lamp's offset from the camera centre (Illuminated mode): when odometry.light_offset is
   // not configured, estimated at every keyframe from the recent keyframes (keyframe_light_offset.hpp)

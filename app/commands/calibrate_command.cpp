@@ -145,8 +145,11 @@ int run_calibrate(const CalibrateOptions& options) {
   std::printf("  status: %s\n", estimate->status.c_str());
   std::printf("  response c = %.6f %.6f %.6f %.6f, vignette v = %.6f %.6f %.6f\n", c[0], c[1], c[2], c[3],
               estimate->vignette.v[0], estimate->vignette.v[1], estimate->vignette.v[2]);
-  std::printf("  measured over grey %.0f-%.0f and radii up to %.2f (corner = 1); outside, the curves are continuations\n",
-              estimate->grey_low, estimate->grey_high, estimate->radius_high);
+  if (estimate->grey_high > estimate->grey_low)
+    std::printf("  measured over grey %.0f-%.0f and radii up to %.2f (corner = 1); outside, the curves are continuations\n",
+                estimate->grey_low, estimate->grey_high, estimate->radius_high);
+  else
+    std::printf("  no back-end estimate: the curves are the initial model, not measured\n");
   if (errors)
     std::printf("  errors vs ground truth: response %.2f / %.2f grey levels, vignette %.4f / %.4f, exposure %.3f / "
                 "%.3f ms (mean / max), median relative %.2f %% over %d frames\n",

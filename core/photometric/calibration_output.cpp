@@ -165,11 +165,13 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
        {{"model", "V(r) = 1 + v1 r^2 + v2 r^4 + v3 r^6, r = distance to the image centre / half-diagonal"},
         {"coefficients", {estimate.vignette.v[0], estimate.vignette.v[1], estimate.vignette.v[2]}}}},
       {"observed",
-       {{"grey_range", {estimate.grey_low, estimate.grey_high}},
-        {"vignette_max_radius", estimate.radius_high},
+       {{"grey_range", estimate.grey_high > estimate.grey_low ? nlohmann::json{estimate.grey_low, estimate.grey_high}
+                                                              : nlohmann::json(nullptr)},
+        {"vignette_max_radius", estimate.radius_high > 0.0 ? nlohmann::json(estimate.radius_high) : nlohmann::json(nullptr)},
         {"note", "1st-99th percentile of the back end's samples: outside the grey range the inverse response is the "
                  "straightest continuation of log G over log I, beyond the radius V is the model's continuation "
-                 "(straight over r^2 with vignette_rim_curvature_weight); neither is measured there"}}},
+                 "(straight over r^2 with vignette_rim_curvature_weight); neither is measured there; null: no "
+                 "back-end estimate (the initial or a given model)"}}},
       {"lamp_beam_exponent", estimate.beam_exponent ? nlohmann::json(*estimate.beam_exponent) : nlohmann::json(nullptr)},
       {"ambiguity_resolution", std::string(to_string(estimate.ambiguity))},
       {"ambiguity_detail", estimate.ambiguity_detail},

@@ -77,6 +77,22 @@ TEST(CalibrateCommand, TheConfigsCalibrationSectionMakesItRepeatable) {
   EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
 }
 
+TEST(CalibrateCommand, TooShortForAnEstimateSaysNothingWasMeasured) {
+  // Six frames give the back end no keyframes to fit: the files hold the initial model, and the
+  // output says that none of it is measured rather than a range of zeros.
+  const auto dir = fresh_dir("calibrate_short");
+  const std::string exe = NIRSLAM_EXECUTABLE;
+  const auto sim = run_command(exe + " simulate --scene room --frames 6 --width 160 --height 120 --out " + (dir / "seq").string());
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  const auto r = run_command(exe + " calibrate " + (dir / "seq").string() + " --out " + (dir / "out").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("no back-end estimate"), std::string::npos) << r.output;
+  std::ifstream calibration_file(dir / "out" / "calibration.json");
+  const auto calibration = nlohmann::json::parse(calibration_file);
+  EXPECT_TRUE(calibration.at("observed").at("grey_range").is_null());
+  EXPECT_TRUE(calibration.at("observed").at("vignette_max_radius").is_null());
+}
+
 TEST(CalibrateCommand, LensVignetteOfAnotherSizeIsNamed) {
   const auto dir = fresh_dir("calibrate_lens");
   const std::string exe = NIRSLAM_EXECUTABLE;

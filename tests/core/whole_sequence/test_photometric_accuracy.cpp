@@ -207,10 +207,16 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   second.backend.initial_response = out.estimate->response;
   second.backend.initial_vignette = out.estimate->vignette;
   second.initial_grey_range = std::make_pair(out.estimate->grey_low, out.estimate->grey_high);
-  if (std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_WITH_TRUTH") != nullptr) {  // diagnosis: the front end alone
-    second.backend.initial_response = truth.response;
-    second.backend.initial_vignette = truth.vignette;
-    second.initial_grey_range.reset();  // the true G holds at every grey level
+  // Diagnosis, the front end alone: the exposure pass with the true f and V (any value), or with
+  // only one of them (=response, =vignette) and the estimate for the other; =response-weighted:
+  // the true f with the estimate's trusted grey range kept (the weights as with the estimate).
+  if (const char* part = std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_WITH_TRUTH")) {
+    const std::string which = part;
+    if (which != "vignette") {
+      second.backend.initial_response = truth.response;
+      if (which != "response-weighted") second.initial_grey_range.reset();  // the true G holds at every grey level
+    }
+    if (which != "response" && which != "response-weighted") second.backend.initial_vignette = truth.vignette;
   }
   OnlinePhotometricCalibration exposures(second);
   Simulator sim(sim_options);

@@ -80,6 +80,9 @@ void PhotometricPanel::update_curves(const PhotometricView& view) {
   response_true_.clear();
   inverse_true_.clear();
   vignette_true_.clear();
+  const bool range_known = view.grey_high > view.grey_low;
+  measured_irradiance_lo_ = range_known ? view.response.inverse(view.grey_low / 255.0) : 0.0;
+  measured_irradiance_hi_ = range_known ? view.response.inverse(view.grey_high / 255.0) : 0.0;
   for (int i = 0; i < kCurveSamples; ++i) {
     const double t = static_cast<double>(i) / (kCurveSamples - 1);
     x_unit_[i] = t;
@@ -192,9 +195,7 @@ void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
     PlotAxes axes = grey_axes;
     axes.x_caption = "irradiance (0..1)";
     response_plot_ = curve("##response", axes, x_unit_, response_, response_true_);
-    if (view.grey_high > view.grey_low)
-      shade_unmeasured(response_plot_, 0.0, 1.0, view.response.inverse(view.grey_low / 255.0),
-                       view.response.inverse(view.grey_high / 255.0));
+    shade_unmeasured(response_plot_, 0.0, 1.0, measured_irradiance_lo_, measured_irradiance_hi_);
   });
   ImGui::SameLine();
   cell("Inverse response G (pcalib)", [&] {

@@ -45,6 +45,9 @@ private:
   int cached_version_ = -1;
   std::vector<double> x_unit_, x_grey_;
   std::vector<double> response_, response_true_, inverse_, inverse_true_, vignette_, vignette_true_;
+  // The measured grey range as irradiance (G of its ends), for the response plot's shading; 0 / 0
+  // when unknown.
+  double measured_irradiance_lo_ = 0.0, measured_irradiance_hi_ = 0.0;
   std::vector<double> frames_, exposure_, reference_;
   std::vector<double> reference_frames_;
 };

@@ -16,6 +16,7 @@
 #include "nirslam/common/error.hpp"
 #include "nirslam/photometric/beam_from_halo.hpp"
 #include "nirslam/photometric/calibration_output.hpp"
+#include "nirslam/photometric/exposure_scale.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/frame_limit.hpp"
@@ -150,12 +151,15 @@ int run_calibrate(const CalibrateOptions& options) {
                 estimate->grey_low, estimate->grey_high, estimate->radius_high);
   else
     std::printf("  no back-end estimate: the curves are the initial model, not measured\n");
+  if (const ReportedExposureScale scale = reported_exposure_scale(exposures.exposure_history()); scale.frames > 0)
+    std::printf("  exposures on the reported scale: the estimated chain x %.4f (median over %d frames)\n", scale.factor,
+                scale.frames);
   if (errors)
     std::printf("  errors vs ground truth: response %.2f / %.2f grey levels, vignette %.4f / %.4f, exposure %.3f / "
-                "%.3f ms (mean / max), median relative %.2f %% over %d frames\n",
+                "%.3f ms (mean / max), relative median %.2f %% / max %.2f %% over %d frames\n",
                 errors->response_mean_grey, errors->response_max_grey, errors->vignette_mean, errors->vignette_max,
                 errors->exposure_mean_ms, errors->exposure_max_ms, 100.0 * errors->exposure_median_relative,
-                errors->exposure_frames);
+                100.0 * errors->exposure_max_relative, errors->exposure_frames);
   write_calibration_output(options.out_dir, *estimate, exposures.exposure_history(), info, errors);
   if (!options.json_file.empty()) {
     std::error_code error;

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/photometric/exposure_scale.hpp"
 
 namespace nirslam {
 
@@ -95,8 +96,13 @@ PhotometricErrors compare_with_ground_truth(const ResponseModel& response, const
     }
   }
   std::unordered_map<std::int64_t, double> true_exposure(truth.exposures.begin(), truth.exposures.end());
+  // On the reported scale when the source reported exposures (as times.txt has them), else
+  // normalised to the truth at the first estimated frame (the Normalisation ambiguity).
+  const ReportedExposureScale reported = reported_exposure_scale(exposures);
   std::optional<double> scale;
+  if (reported.frames > 0) scale = reported.factor;
   std::vector<double> relative;
+  std::vector<std::pair<double, double>> pairs;  // (estimated, true)
   for (const ExposureSample& s : exposures) {
     const auto it = true_exposure.find(s.frame_index);
     if (!s.estimated || it == true_exposure.end() || !(*s.estimated > 0.0)) continue;
@@ -106,13 +112,24 @@ PhotometricErrors compare_with_ground_truth(const ResponseModel& response, const
     errors.exposure_mean_ms += d;
     errors.exposure_max_ms = std::max(errors.exposure_max_ms, d);
     relative.push_back(std::abs(e / it->second - 1.0));
+    errors.exposure_max_relative = std::max(errors.exposure_max_relative, relative.back());
+    pairs.emplace_back(*s.estimated, it->second);
   }
   errors.exposure_frames = static_cast<int>(relative.size());
+  const auto median = [](std::vector<double>& values) {
+    const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+    std::nth_element(values.begin(), middle, values.end());
+    return *middle;
+  };
   if (!relative.empty()) {
     errors.exposure_mean_ms /= static_cast<double>(relative.size());
-    const auto middle = relative.begin() + static_cast<std::ptrdiff_t>(relative.size() / 2);
-    std::nth_element(relative.begin(), middle, relative.end());
-    errors.exposure_median_relative = *middle;
+    errors.exposure_median_relative = median(relative);
+    std::vector<double> log_ratio;
+    for (const auto& [est, tru] : pairs) log_ratio.push_back(std::log(tru / est));
+    const double aligned_scale = std::exp(median(log_ratio));
+    relative.clear();
+    for (const auto& [est, tru] : pairs) relative.push_back(std::abs(est * aligned_scale / tru - 1.0));
+    errors.exposure_median_relative_aligned = median(relative);
   }
   return errors;
 }
@@ -126,6 +143,7 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
   write_pcalib(folder / "pcalib.txt", estimate.response.inverse_table(256));
   write_vignette_png(folder / "vignette.png", estimate.vignette.render(info.width, info.height));
 
+  const ReportedExposureScale scale = reported_exposure_scale(exposures);
   const fs::path times = folder / "times.txt";
   {
     errno = 0;
@@ -135,7 +153,7 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
     for (const ExposureSample& s : exposures) {
       if (!s.estimated) continue;
       std::snprintf(line, sizeof line, "%05lld %.9f %.6f\n", static_cast<long long>(s.frame_index), s.timestamp_s,
-                    *s.estimated);
+                    *s.estimated * scale.factor);
       out << line;
     }
     out.close();
@@ -147,7 +165,7 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
   for (const ExposureSample& s : exposures)
     frames.push_back({{"index", s.frame_index},
                       {"timestamp_s", s.timestamp_s},
-                      {"exposure_estimated", json_number_or_null(s.estimated)},
+                      {"exposure_estimated", s.estimated ? nlohmann::json(*s.estimated * scale.factor) : nlohmann::json(nullptr)},
                       {"exposure_reported", json_number_or_null(s.reported)},
                       {"status", static_cast<int>(s.status)}});
   nlohmann::json keyframes = nlohmann::json::array();
@@ -188,6 +206,12 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
         {"model_version", estimate.model_version},
         {"status", estimate.status}}},
       {"timing", {{"wall_time_s", info.wall_time_s}, {"mean_front_end_ms", info.mean_front_end_ms}}},
+      {"exposure_scale",
+       {{"factor", scale.factor},
+        {"frames", scale.frames},
+        {"note", "the estimated exposures (times.txt, exposures) are the front end's chain of ratios times this "
+                 "factor, the median of reported / estimated over the frames that report an exposure (1 and 0 "
+                 "frames: none reported, the chain's first frame = 1)"}}},
       {"keyframe_exposures", keyframes},
       {"exposures", frames},
       {"errors", nullptr}};
@@ -200,7 +224,10 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
                    {"exposure_max_ms", errors->exposure_max_ms},
                    {"exposure_median_relative", errors->exposure_median_relative},
                    {"exposure_frames", errors->exposure_frames},
-                   {"exposure_normalisation", "estimate scaled to the truth at the first estimated frame"}};
+                   {"exposure_max_relative", errors->exposure_max_relative},
+                   {"exposure_median_relative_aligned", errors->exposure_median_relative_aligned},
+                   {"exposure_normalisation", scale.frames > 0 ? "as written (on the reported scale)"
+                                                               : "estimate scaled to the truth at the first estimated frame"}};
   const fs::path json_file = folder / "calibration.json";
   errno = 0;
   std::ofstream out(json_file);

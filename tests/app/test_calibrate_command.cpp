@@ -43,6 +43,9 @@ TEST(CalibrateCommand, WritesDsoFilesAndErrorsForASimulatedSequence) {
   const double grey_low = observed.at("grey_range").at(0), grey_high = observed.at("grey_range").at(1);
   EXPECT_GE(grey_low, 0.0);
   EXPECT_GT(grey_high, grey_low + 20.0);
+  // The simulator reports exposures: the estimates are put on that scale and the output says by what.
+  EXPECT_NE(r.output.find("exposures on the reported scale"), std::string::npos) << r.output;
+  EXPECT_GT(calibration.at("exposure_scale").at("frames").get<int>(), 0);
   EXPECT_LE(grey_high, 255.0);
   const double radius = observed.at("vignette_max_radius");
   EXPECT_GT(radius, 0.3);

@@ -38,14 +38,19 @@ struct PhotometricErrors {
   double response_max_grey = 0.0;
   double vignette_mean = 0.0;       // |V_est - V_true| of both scaled to their maximum, over the image
   double vignette_max = 0.0;
-  double exposure_mean_ms = 0.0;    // |e_est - e_true| after scaling e_est to e_true at the first estimated frame
+  double exposure_mean_ms = 0.0;    // |e_est - e_true| with e_est scaled as compare_with_ground_truth says
   double exposure_max_ms = 0.0;
   double exposure_median_relative = 0.0;  // median |e_est / e_true - 1|
+  double exposure_max_relative = 0.0;     // max |e_est / e_true - 1| (where the median hides a ramp)
+  // The same after the one scale that best fits the whole sequence (the median of log(e_true /
+  // e_est)) instead of the first frame's: the error of the exposures relative to each other.
+  double exposure_median_relative_aligned = 0.0;
   int exposure_frames = 0;
 };
 
-// Errors of an estimate against ground truth; exposures are normalised both at the first frame
-// that has an estimate and a true value (the Normalisation ambiguity; a no-op under KnownExposures).
+// Errors of an estimate against ground truth. Exposures are compared on the reported scale when
+// the samples carry reported exposures (exposure_scale.hpp, as times.txt has them), else scaled to
+// the truth at the first frame that has an estimate and a true value (the Normalisation ambiguity).
 PhotometricErrors compare_with_ground_truth(const ResponseModel& response, const VignetteModel& vignette,
                                             const std::vector<ExposureSample>& exposures,
                                             const PhotometricGroundTruth& truth, int width, int height);

@@ -88,11 +88,13 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read<int>("queue_capacity", pipeline.calibration.queue_capacity, 1, 1000);
   calibration.read<double>("min_exposure_varying_fraction", pipeline.calibration.backend.min_exposure_varying_fraction, 0.0, 1.0);
   calibration.read_flag("keyframes_follow_surface", pipeline.calibration.keyframes_follow_deformation);
+  calibration.read_flag("exposure_follows_surface", pipeline.calibration.exposure.follow_deformation);
   calibration.read_flag("track_near_border", pipeline.calibration.tracker.skip_coarse_levels_at_border);
   calibration.read<double>("vignette_rim_curvature_weight", pipeline.calibration.backend.vignette_rim_curvature_weight, 0.0, 1e6);
   calibration.read_flag("lamp_mode_keyframes_follow_surface", pipeline.lamp_mode_keyframes_follow_surface);
   calibration.read<double>("lamp_mode_vignette_rim_curvature_weight", pipeline.lamp_mode_vignette_rim_curvature_weight, 0.0, 1e6);
   calibration.read_flag("lamp_mode_track_near_border", pipeline.lamp_mode_track_near_border);
+  calibration.read_flag("lamp_mode_exposure_follows_surface", pipeline.lamp_mode_exposure_follows_surface);
   calibration.read<double>("max_residual_grey", pipeline.calibration.gate.max_residual_rms, 0.0, 255.0);
   calibration.read<double>("max_response_slope", pipeline.calibration.gate.max_response_slope, 0.0, 100.0);
   calibration.read<double>("min_response_slope", pipeline.calibration.gate.min_response_slope, 0.0, 100.0);

@@ -98,6 +98,7 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
     options_.light_offset_estimation.beam_exponent = options_.odometry.beam_exponent;
   if (corrects_illuminator(options_.mode) && options_.lamp_distances_to_calibration) {
     options_.calibration.keyframes_follow_deformation = options_.lamp_mode_keyframes_follow_surface;
+    options_.calibration.exposure.follow_deformation = options_.lamp_mode_exposure_follows_surface;
     options_.calibration.backend.vignette_rim_curvature_weight = options_.lamp_mode_vignette_rim_curvature_weight;
     options_.calibration.tracker.skip_coarse_levels_at_border = options_.lamp_mode_track_near_border;
   }

@@ -60,6 +60,10 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_vignette_rim_curvature_weight,
                    PipelineOptions{}.lamp_mode_vignette_rim_curvature_weight);
   EXPECT_EQ(config.worker.pipeline.lamp_mode_track_near_border, PipelineOptions{}.lamp_mode_track_near_border);
+  EXPECT_EQ(config.worker.pipeline.calibration.exposure.follow_deformation,
+            OnlineCalibrationOptions{}.exposure.follow_deformation);
+  EXPECT_TRUE(OnlineCalibrationOptions{}.exposure.follow_deformation);
+  EXPECT_EQ(config.worker.pipeline.lamp_mode_exposure_follows_surface, PipelineOptions{}.lamp_mode_exposure_follows_surface);
 }
 
 TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
@@ -113,7 +117,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"
                 "  track_near_border: true\n  keyframes_follow_surface: false\n  vignette_rim_curvature_weight: 0.25\n"
                 "  lamp_mode_keyframes_follow_surface: true\n  lamp_mode_vignette_rim_curvature_weight: 0.5\n"
-                "  lamp_mode_track_near_border: false\n"));
+                "  lamp_mode_track_near_border: false\n  exposure_follows_surface: false\n"
+                "  lamp_mode_exposure_follows_surface: true\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
@@ -127,6 +132,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_TRUE(config.worker.pipeline.lamp_mode_keyframes_follow_surface);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_vignette_rim_curvature_weight, 0.5);
   EXPECT_FALSE(config.worker.pipeline.lamp_mode_track_near_border);
+  EXPECT_FALSE(config.worker.pipeline.calibration.exposure.follow_deformation);
+  EXPECT_TRUE(config.worker.pipeline.lamp_mode_exposure_follows_surface);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 1.0);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.raw_frame_exponent, 0.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.light_distances.max_log_spread, 0.1);

@@ -85,6 +85,7 @@ TEST(SlamPipeline, TheLampModeTakesItsOwnCalibrationSettings) {
     EXPECT_TRUE(calibrated.options().calibration.keyframes_follow_deformation);
     EXPECT_DOUBLE_EQ(calibrated.options().calibration.backend.vignette_rim_curvature_weight, 1.0);
     EXPECT_FALSE(calibrated.options().calibration.tracker.skip_coarse_levels_at_border);
+    EXPECT_TRUE(calibrated.options().calibration.exposure.follow_deformation);
   }
   options.mode = PipelineMode::Illuminated;
   {
@@ -92,12 +93,15 @@ TEST(SlamPipeline, TheLampModeTakesItsOwnCalibrationSettings) {
     EXPECT_FALSE(lamp.options().calibration.keyframes_follow_deformation);
     EXPECT_DOUBLE_EQ(lamp.options().calibration.backend.vignette_rim_curvature_weight, 0.0);
     EXPECT_TRUE(lamp.options().calibration.tracker.skip_coarse_levels_at_border);
+    EXPECT_FALSE(lamp.options().calibration.exposure.follow_deformation);
   }
   options.lamp_mode_keyframes_follow_surface = true;
   options.lamp_mode_vignette_rim_curvature_weight = 0.5;
   options.lamp_mode_track_near_border = false;
+  options.lamp_mode_exposure_follows_surface = true;
   {
     const SlamPipeline lamp(options, pinhole(64, 48));
+    EXPECT_TRUE(lamp.options().calibration.exposure.follow_deformation);
     EXPECT_TRUE(lamp.options().calibration.keyframes_follow_deformation);
     EXPECT_DOUBLE_EQ(lamp.options().calibration.backend.vignette_rim_curvature_weight, 0.5);
     EXPECT_FALSE(lamp.options().calibration.tracker.skip_coarse_levels_at_border);

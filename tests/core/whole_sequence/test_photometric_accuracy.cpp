@@ -47,6 +47,9 @@ struct AccuracyRun {
   // reported value, so such a frame's error is 0 by construction) or kept the last one.
   int restarted_frames = 0;
   int kept_frames = 0;
+  // Exposure median relative error on the chain's first-frame scale (errors has it on the
+  // reported scale, exposure_scale.hpp).
+  double first_frame_exposure_median = 0.0;
   std::shared_ptr<const PhotometricEstimate> estimate;
 };
 
@@ -126,6 +129,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (light_factor) {
     const PipelineOptions lamp_mode;
     options.keyframes_follow_deformation = lamp_mode.lamp_mode_keyframes_follow_surface;
+    options.exposure.follow_deformation = lamp_mode.lamp_mode_exposure_follows_surface;
     options.backend.vignette_rim_curvature_weight = lamp_mode.lamp_mode_vignette_rim_curvature_weight;
     options.tracker.skip_coarse_levels_at_border = lamp_mode.lamp_mode_track_near_border;
   }
@@ -157,8 +161,9 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   // Fall-off of the exposure estimator's trust outside the fitted grey range (exposure_estimator.hpp);
   // 1e9 trusts every grey level (as before the weighting).
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_TRUST_WIDTH")) options.exposure.trust_width_grey = std::atof(w);
-  // The exposure estimator's patches follow the surface's deformation (exposure_estimator.hpp; off by default).
-  if (std::getenv("NIRSLAM_PHOTOMETRIC_FOLLOW_DEFORMATION") != nullptr) options.exposure.follow_deformation = true;
+  // The exposure estimator's patches follow the surface's deformation (exposure_estimator.hpp; on
+  // by default without the lamp's model; =0 the fixed window).
+  if (const char* follow = std::getenv("NIRSLAM_PHOTOMETRIC_FOLLOW_DEFORMATION")) options.exposure.follow_deformation = std::atoi(follow) != 0;
   // The back end's keyframe observations follow the surface (keyframe_selection.hpp; =0 a fixed grid).
   if (const char* follow = std::getenv("NIRSLAM_PHOTOMETRIC_BACKEND_FOLLOW")) options.keyframes_follow_deformation = std::atoi(follow) != 0;
   // The neighbourhood the deformation is fitted over (track_deformation.hpp, 60 px by default).
@@ -255,6 +260,13 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   }
   out.errors = compare_with_ground_truth(out.estimate->response, out.estimate->vignette, exposures.exposure_history(),
                                          truth, sim_options.width, sim_options.height);
+  {  // The chain's own scale (its first frame's reported exposure), as before exposure_scale.hpp.
+    std::vector<ExposureSample> chain = exposures.exposure_history();
+    for (ExposureSample& s : chain) s.reported.reset();
+    out.first_frame_exposure_median = compare_with_ground_truth(out.estimate->response, out.estimate->vignette, chain, truth,
+                                                                sim_options.width, sim_options.height)
+                                          .exposure_median_relative;
+  }
   {
     const std::vector<double> estimated = out.estimate->response.inverse_table(256);
     const std::vector<double> expected = truth.response.inverse_table(256);
@@ -291,8 +303,11 @@ void print(const char* label, const AccuracyRun& r) {
               r.errors.vignette_max, r.errors.exposure_mean_ms, r.errors.exposure_max_ms,
               100.0 * r.errors.exposure_median_relative, r.estimate->status.c_str());
   std::printf("%-16s observed range modulo the irradiance scale (s = %.3f): %5.2f / %6.2f gl; exposure pass: %d frames "
-              "restarted, %d kept\n", label, r.irradiance_scale, r.scale_free_mean_grey, r.scale_free_max_grey,
-              r.restarted_frames, r.kept_frames);
+              "restarted, %d kept; exposure max %.2f %%, median on the first frame's scale %.2f %%, aligned by one "
+              "scale %.2f %%\n",
+              label, r.irradiance_scale, r.scale_free_mean_grey, r.scale_free_max_grey, r.restarted_frames, r.kept_frames,
+              100.0 * r.errors.exposure_max_relative, 100.0 * r.first_frame_exposure_median,
+              100.0 * r.errors.exposure_median_relative_aligned);
   if (r.estimate->beam_exponent) std::printf("%-16s beam exponent m %.3f\n", label, *r.estimate->beam_exponent);
   if (r.estimate->ambiguity == AmbiguityResolution::Normalisation)
     std::printf("%-16s response modulo gamma %5.2f / %6.2f gl (%s)\n", label, r.gamma_free_mean_grey,
@@ -314,7 +329,9 @@ TEST(PhotometricAccuracy, RoomConstantRadianceKnownExposures) {
   // the surface, V straight at the rim): s 0.943 / 0.936 / 0.918, response over all levels
   // 3.56 / 3.77 / 4.01 grey levels (max 9.22 / 9.33 / 8.56), in the observed range 1.50 / 1.71 /
   // 2.41 (max 3.43 / 4.05 / 4.90), all of it s: modulo s 0.06 / 0.02 / 0.23 (max 0.09 / 0.04 /
-  // 0.63); vignette 0.0021 / 0.0023 / 0.0022; exposure median 1.39 / 0.82 / 1.82 %. (The fixed
+  // 0.63); vignette 0.0021 / 0.0023 / 0.0022; exposure median 1.84 / 0.68 / 0.34 % (session 25:
+  // on the reported scale, exposure_scale.hpp, with the exposure patches following the surface;
+  // on the chain's first-frame scale and the fixed window 1.39 / 0.82 / 1.82 %). (The fixed
   // grid without the rim term: 1.85 / 2.20 / 4.21 over all levels, s 0.964 / 0.962 / 0.910.) The
   // issue's vignette and exposure targets are asserted; its response target (< 2 over all levels)
   // holds modulo s, and s is held to within 10 % of the truth.
@@ -335,7 +352,10 @@ TEST(PhotometricAccuracy, RoomConstantRadianceKnownExposures) {
 // through it: every later frame 12 % off the first. Measured with gradient_mu 0.25 and
 // log_curvature_weight 100 (this test's printout): response 1.51 / 3.53 grey levels, vignette
 // 0.0058, exposure median 2.95 % (curvature weight 3: 1.97 / 4.89, 0.0079, 3.51 %; mu 25: 6.76 /
-// 17.46, 0.0048, 12.1 %). The exposure target (< 2 %) is not met here yet.
+// 17.46, 0.0048, 12.1 %). That ramp's error remains (the first frames' ratio to the rest) but
+// is no longer every frame's: on the reported scale (exposure_scale.hpp) with the exposure
+// patches following the surface, exposure median 0.97 / 0.61 / 0.48 % over seeds 1 / 2 / 3
+// (the chain's first-frame scale 4.24 % in seed 1), so the target (< 2 %) is asserted.
 TEST(PhotometricAccuracy, OutdoorGammaKnownExposures) {
   const AccuracyRun r = run(constant_radiance(sim::SceneKind::Outdoor, ResponsePreset::Gamma, 150), true);
   print("outdoor gamma", r);
@@ -343,7 +363,7 @@ TEST(PhotometricAccuracy, OutdoorGammaKnownExposures) {
   EXPECT_LT(r.errors.response_max_grey, 6.0);
   EXPECT_LT(r.scale_free_mean_grey, 0.5);
   EXPECT_LT(r.errors.vignette_mean, 0.009);
-  EXPECT_LT(r.errors.exposure_median_relative, 0.045);
+  EXPECT_LT(r.errors.exposure_median_relative, 0.02);
 }
 
 TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
@@ -368,6 +388,8 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
 // (2.32 in the observed range 9-167), 0.0170 and 3.03 %, residual 1.96 against 4.80 grey levels.
 // Before the back end's monotone vignette steps (VignetteSteps::Bisected under the lamp too) the
 // factor gave 12.1, 0.105 and 16.7 %: the steep halo stalled on the plausibility boundary.
+// Exposures on the reported scale (exposure_scale.hpp, session 25): without the factor 21.4 %,
+// with it 0.94 % (on the chain's first-frame scale 66.8 % and 3.03 %).
 TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
   const AccuracyRun plain = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, false);
   const AccuracyRun lit = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, true);
@@ -385,7 +407,8 @@ TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
 // The same with the light's true incidence cos(theta) in the factor as well (surface normals from
 // the scene; the pipeline's plane fits can hand it on, PipelineOptions::lamp_cosine_to_calibration).
 // Then the room meets issue 6's halo and exposure targets. Measured (this test's printout): halo
-// factor 0.0037 (< 0.005), exposure median 1.62 % (< 2 %); the response is 0.76 grey levels off
+// factor 0.0037 (< 0.005), exposure median 1.62 % (< 2 %; 1.37 % on the reported scale,
+// exposure_scale.hpp); the response is 0.76 grey levels off
 // modulo the irradiance scale in the observed range but 12.0 over all levels (s = 1.43: the frames
 // never reach saturation, so the scale is the documented normalisation, not data; README).
 TEST(PhotometricAccuracy, RoomCoLitDistanceAndCosine) {

@@ -34,7 +34,9 @@
 // weights (the same weights on both sides, so the ratio stays unbiased where G is right), and the
 // track's candidate enters the robust mean with its mean pixel weight.
 //
-// The same surface, not the same pixels (follow_deformation; OFF by default, see below): a fixed
+// The same surface, not the same pixels (follow_deformation; off here by default since the
+// estimator needs the tracker's deformation, on in the online calibration without the lamp's
+// model, OnlineCalibrationOptions::exposure): a fixed
 // 9 x 9 pixel window around a tracked point covers less and less of the surface as the camera
 // approaches it, and the window's mean radiance changes with the track's magnification even where
 // the radiance at the point itself is constant (track_deformation.hpp; on the simulated tunnel

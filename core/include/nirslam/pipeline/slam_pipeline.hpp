@@ -107,6 +107,9 @@ struct PipelineOptions {
   // odometry has distances.
   bool lamp_mode_keyframes_follow_surface = false;
   double lamp_mode_vignette_rim_curvature_weight = 0.0;
+  // ... and of calibration.exposure.follow_deformation (the exposure estimator's patches following
+  // the surface; on without the lamp's model, session 25): not measured with the lamp's factors.
+  bool lamp_mode_exposure_follows_surface = false;
   // ... and of calibration.tracker.skip_coarse_levels_at_border (the calibration's tracks kept up
   // to the image border, where the lamp's halo factor falls steepest). Off: on, Table 2's lamp
   // mode went 0.0260 -> 0.0238 m but was better on 6 of 12 only (parking 20 W 0.71 -> 0.36 % of

@@ -1,29 +1,47 @@
 #include "nirslam/photometric/exposure_scale.hpp"
 
-#include <algorithm>
 #include <cmath>
 
 namespace nirslam {
 
-ReportedExposureScale reported_exposure_scale(const std::vector<ExposureSample>& history) {
-  std::vector<double> log_ratios;
-  for (const ExposureSample& s : history) {
-    if (s.status != ExposureStatus::Estimated || !s.estimated || !s.reported) continue;
-    if (!(*s.estimated > 0.0) || !(*s.reported > 0.0) || !std::isfinite(*s.estimated) || !std::isfinite(*s.reported))
-      continue;
-    log_ratios.push_back(std::log(*s.reported / *s.estimated));
+void ReportedExposureScaleTracker::add(const ExposureSample& s) {
+  if (s.status != ExposureStatus::Estimated || !s.estimated || !s.reported) return;
+  if (!(*s.estimated > 0.0) || !(*s.reported > 0.0) || !std::isfinite(*s.estimated) || !std::isfinite(*s.reported))
+    return;
+  const double log_ratio = std::log(*s.reported / *s.estimated);
+  if (lower_.empty() || log_ratio <= lower_.top())
+    lower_.push(log_ratio);
+  else
+    upper_.push(log_ratio);
+  // Keep |lower| = |upper| or |upper| + 1.
+  if (lower_.size() > upper_.size() + 1) {
+    upper_.push(lower_.top());
+    lower_.pop();
+  } else if (upper_.size() > lower_.size()) {
+    lower_.push(upper_.top());
+    upper_.pop();
   }
+}
+
+ReportedExposureScale ReportedExposureScaleTracker::current() const {
   ReportedExposureScale scale;
-  scale.frames = static_cast<int>(log_ratios.size());
-  if (log_ratios.empty()) return scale;
-  const auto middle = log_ratios.begin() + static_cast<std::ptrdiff_t>(log_ratios.size() / 2);
-  std::nth_element(log_ratios.begin(), middle, log_ratios.end());
-  double log_median = *middle;
-  if (log_ratios.size() % 2 == 0) {  // the mean of the two middle values: symmetric in the order
-    log_median = 0.5 * (log_median + *std::max_element(log_ratios.begin(), middle));
-  }
+  scale.frames = static_cast<int>(lower_.size() + upper_.size());
+  if (scale.frames == 0) return scale;
+  // Even count: the mean of the two middle values.
+  const double log_median = lower_.size() > upper_.size() ? lower_.top() : 0.5 * (lower_.top() + upper_.top());
   scale.factor = std::exp(log_median);
   return scale;
+}
+
+void ReportedExposureScaleTracker::reset() {
+  lower_ = {};
+  upper_ = {};
+}
+
+ReportedExposureScale reported_exposure_scale(const std::vector<ExposureSample>& history) {
+  ReportedExposureScaleTracker tracker;
+  for (const ExposureSample& s : history) tracker.add(s);
+  return tracker.current();
 }
 
 std::vector<ExposureSample> on_reported_scale(const std::vector<ExposureSample>& history) {

@@ -286,6 +286,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     point.reference = frame.exposure_ms ? static_cast<float>(*frame.exposure_ms * frame.gain.value_or(1.0))
                                         : std::numeric_limits<float>::quiet_NaN();
     point.keyframe = corrected.keyframe;
+    if (!calibration_->exposure_history().empty()) reported_exposure_scale_.add(calibration_->exposure_history().back());
     exposures_.push_back(point);
     if (exposures_.size() > options_.exposure_history)
       exposures_.erase(exposures_.begin(), exposures_.begin() + static_cast<std::ptrdiff_t>(exposures_.size() - options_.exposure_history));
@@ -467,6 +468,11 @@ std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
     }
   }
   view->exposures = exposures_;
+  const ReportedExposureScale scale = reported_exposure_scale_.current();
+  view->exposure_scale = scale.factor;
+  view->exposure_scale_frames = scale.frames;
+  for (ExposurePoint& p : view->exposures)
+    if (std::isfinite(p.estimated)) p.estimated = static_cast<float>(p.estimated * scale.factor);
   photometric_view_ = std::move(view);
   photometric_dirty_ = false;
   return photometric_view_;

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -68,6 +69,33 @@ TEST(ReportedExposureScale, RestartsAndNonFiniteValuesAreLeftOut) {
   const ReportedExposureScale scale = reported_exposure_scale(history);
   EXPECT_EQ(scale.frames, 59 - 30 - 2);
   EXPECT_NEAR(scale.factor, 1.0 / 0.93, 0.006);
+}
+
+// The running median of a live chain equals the batch one at every length, odd and even.
+TEST(ReportedExposureScale, TheRunningMedianIsTheMedianAtEveryFrame) {
+  std::vector<ExposureSample> history;
+  ReportedExposureScaleTracker tracker;
+  std::vector<double> log_ratios;
+  for (int i = 0; i < 41; ++i) {
+    ExposureSample s;
+    s.frame_index = i;
+    s.status = ExposureStatus::Estimated;
+    s.reported = 10.0;
+    s.estimated = 10.0 * std::exp(0.05 * std::sin(2.3 * i) + 0.01 * (i % 7));
+    history.push_back(s);
+    tracker.add(s);
+    log_ratios.push_back(std::log(*s.reported / *s.estimated));
+    std::vector<double> sorted = log_ratios;
+    std::sort(sorted.begin(), sorted.end());
+    const std::size_t n = sorted.size();
+    const double median = n % 2 == 1 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]);
+    EXPECT_NEAR(tracker.current().factor, std::exp(median), 1e-12) << i;
+    EXPECT_EQ(tracker.current().frames, static_cast<int>(n));
+    EXPECT_NEAR(reported_exposure_scale(history).factor, std::exp(median), 1e-12) << i;
+  }
+  tracker.reset();
+  EXPECT_EQ(tracker.current().frames, 0);
+  EXPECT_EQ(tracker.current().factor, 1.0);
 }
 
 // The output and the comparison with ground truth use the reported scale: times.txt and the

@@ -283,7 +283,11 @@ void PhotometricPanel::draw_exposure(const PhotometricView& view, float height) 
       hi = std::max(hi, static_cast<double>(p.reference));
     }
   }
-  const std::string caption = fmt::format("Exposure ({}){}", view.exposure_unit,
+  const std::string scale = view.exposure_scale_frames > 0
+                                ? fmt::format("; estimate x{:.3f}, median over {} frames", view.exposure_scale,
+                                              view.exposure_scale_frames)
+                                : std::string();
+  const std::string caption = fmt::format("Exposure ({}{}){}", view.exposure_unit, scale,
                                           view.exposure_status.empty() ? "" : " · last frame: " + view.exposure_status);
   ImGui::TextColored(to_vec4(colours::text_dim), "%s", caption.c_str());
   height -= ImGui::GetTextLineHeightWithSpacing();

@@ -16,6 +16,7 @@
 
 #include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/photometric/response_model.hpp"
+#include "nirslam/photometric/exposure_scale.hpp"
 #include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "response_error.hpp"
@@ -72,6 +73,16 @@ TEST(SlamPipelineSequence, CalibratedModeRunsEveryStageAndPublishesViews) {
     ++compared;
   }
   EXPECT_GT(compared, 30);
+  // ... on the reported scale, as times.txt has them: the chain times the median factor.
+  const ReportedExposureScale scale = reported_exposure_scale(pipeline.calibration()->exposure_history());
+  EXPECT_GT(photometric->exposure_scale_frames, 20);
+  EXPECT_EQ(photometric->exposure_scale_frames, scale.frames);
+  EXPECT_NEAR(photometric->exposure_scale, scale.factor, 1e-12);
+  const std::vector<ExposureSample>& chain = pipeline.calibration()->exposure_history();
+  for (std::size_t i = 0; i < chain.size(); ++i) {
+    if (!chain[i].estimated) continue;
+    EXPECT_NEAR(photometric->exposures[i].estimated, *chain[i].estimated * scale.factor, 1e-4 * *chain[i].estimated);
+  }
 
   const auto trajectory = pipeline.trajectory_view();
   EXPECT_TRUE(trajectory->enabled);

@@ -16,6 +16,8 @@
 // whole history, also across restarts at a reported exposure (each restart sets the chain to
 // that frame's reported value, so segments differ in scale by their own chain errors only).
 
+#include <functional>
+#include <queue>
 #include <vector>
 
 #include "nirslam/photometric/online_calibration.hpp"
@@ -25,6 +27,18 @@ namespace nirslam {
 struct ReportedExposureScale {
   double factor = 1.0;  // multiplies every estimated exposure
   int frames = 0;       // frames the median was taken over (0: no reported exposures, factor 1)
+};
+
+// The running median over a growing history (two heaps: O(log n) a frame), for a live chain.
+class ReportedExposureScaleTracker {
+public:
+  void add(const ExposureSample& sample);  // ignored unless it counts (see above)
+  ReportedExposureScale current() const;
+  void reset();
+
+private:
+  std::priority_queue<double> lower_;                                           // max-heap
+  std::priority_queue<double, std::vector<double>, std::greater<double>> upper_;  // min-heap
 };
 
 ReportedExposureScale reported_exposure_scale(const std::vector<ExposureSample>& history);

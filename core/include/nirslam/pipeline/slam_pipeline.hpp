@@ -25,6 +25,7 @@
 #include "nirslam/image/frame.hpp"
 #include "nirslam/odometry/direct_odometry.hpp"
 #include "nirslam/photometric/beam_from_halo.hpp"
+#include "nirslam/photometric/exposure_scale.hpp"
 #include "nirslam/photometric/given_calibration.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/pipeline/keyframe_light_offset.hpp"
@@ -266,7 +267,8 @@ private:
   void estimate_light_offset(const OdometryFrame& input, const cv::Mat& irradiance, const OdometryResult& result);
 
   // View state.
-  std::vector<ExposurePoint> exposures_;
+  std::vector<ExposurePoint> exposures_;  // the chain's values; the view puts them on the reported scale
+  ReportedExposureScaleTracker reported_exposure_scale_;
   std::shared_ptr<const PhotometricView> photometric_view_;
   bool photometric_dirty_ = true;
   std::unordered_map<std::int64_t, Eigen::Vector3d> truth_positions_;  // frame index -> true centre

@@ -35,6 +35,11 @@ struct PhotometricView {
   std::string status;            // convergence status, or why there is no estimate yet
   std::string exposure_status;   // the last frame's exposure estimate: "estimated", or why not
   std::string exposure_unit = "ms";  // "ms" when anchored to reported exposures, else "relative"
+  // The exposures' estimated values are on the reported scale (exposure_scale.hpp): the chain's
+  // values times this factor, the median over this many frames (0: none reported, factor 1), as
+  // times.txt has them.
+  double exposure_scale = 1.0;
+  int exposure_scale_frames = 0;
   // Where the data constrain the curves (PhotometricEstimate): the grey range of the back end's
   // samples and their largest radius; outside, the curves are continuations. 0 / 0 / 0: unknown.
   double grey_low = 0.0;

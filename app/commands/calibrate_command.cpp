@@ -178,7 +178,8 @@ void add_calibrate_command(CLI::App& parent, CommandAction& action) {
   CLI::App* cmd = parent.add_subcommand(
       "calibrate",
       "Online photometric calibration of a whole sequence (response, vignette, per-frame exposure), then a final\n"
-      "optimisation over all keyframes. Writes DSO's pcalib.txt, vignette.png, times.txt (estimated exposures)\n"
+      "optimisation over all keyframes. Writes DSO's pcalib.txt, vignette.png, times.txt (estimated exposures,\n"
+      "scaled to the reported ones by their median ratio when the source reports them)\n"
       "and calibration.json. With ground truth (a `nirslam simulate` folder or sim:SCENE) also prints the errors.");
   cmd->add_option("sequence", options->source, kSourceArgumentHelp)->required();
   cmd->add_option("--out", options->out_dir, "Output folder")->required();

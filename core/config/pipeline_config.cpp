@@ -89,6 +89,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read<double>("min_exposure_varying_fraction", pipeline.calibration.backend.min_exposure_varying_fraction, 0.0, 1.0);
   calibration.read_flag("keyframes_follow_surface", pipeline.calibration.keyframes_follow_deformation);
   calibration.read_flag("exposure_follows_surface", pipeline.calibration.exposure.follow_deformation);
+  calibration.read_flag("keyframes_by_reported_exposure", pipeline.calibration.keyframes_by_reported_exposure);
   calibration.read_flag("track_near_border", pipeline.calibration.tracker.skip_coarse_levels_at_border);
   calibration.read<double>("vignette_rim_curvature_weight", pipeline.calibration.backend.vignette_rim_curvature_weight, 0.0, 1e6);
   calibration.read_flag("lamp_mode_keyframes_follow_surface", pipeline.lamp_mode_keyframes_follow_surface);

@@ -269,10 +269,19 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
                                     reported, out.estimate.status});
 
   if (options_.run_backend) {
-    const KeyframeDecision decision = selector_.consider(tracked, out.estimate, frame.timestamp_s);
+    const bool known = options_.use_reported_exposures && reported.has_value();
+    // With a reported exposure the back end holds it, so the keyframe choice goes by it too: the
+    // front end's estimate is then an output only (under a co-located lamp a constant-radiance
+    // estimate moves with the lamp's distance, and keyframes chosen on it changed with the
+    // estimator's details).
+    ExposureEstimate for_selection = out.estimate;
+    if (known && options_.keyframes_by_reported_exposure) {
+      for_selection.exposure = *reported;
+      for_selection.status = ExposureStatus::Estimated;
+    }
+    const KeyframeDecision decision = selector_.consider(tracked, for_selection, frame.timestamp_s);
     if (decision.keyframe) {
       out.keyframe = true;
-      const bool known = options_.use_reported_exposures && reported.has_value();
       Job job;
       job.kind = Job::Keyframe;
       job.keyframe = make_photometric_keyframe(tracked, frame.timestamp_s, known ? *reported : *out.exposure, known,

@@ -63,6 +63,8 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_EQ(config.worker.pipeline.calibration.exposure.follow_deformation,
             OnlineCalibrationOptions{}.exposure.follow_deformation);
   EXPECT_TRUE(OnlineCalibrationOptions{}.exposure.follow_deformation);
+  EXPECT_EQ(config.worker.pipeline.calibration.keyframes_by_reported_exposure,
+            OnlineCalibrationOptions{}.keyframes_by_reported_exposure);
   EXPECT_EQ(config.worker.pipeline.lamp_mode_exposure_follows_surface, PipelineOptions{}.lamp_mode_exposure_follows_surface);
 }
 
@@ -118,7 +120,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  track_near_border: true\n  keyframes_follow_surface: false\n  vignette_rim_curvature_weight: 0.25\n"
                 "  lamp_mode_keyframes_follow_surface: true\n  lamp_mode_vignette_rim_curvature_weight: 0.5\n"
                 "  lamp_mode_track_near_border: false\n  exposure_follows_surface: false\n"
-                "  lamp_mode_exposure_follows_surface: true\n"));
+                "  lamp_mode_exposure_follows_surface: true\n  keyframes_by_reported_exposure: false\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
@@ -134,6 +136,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_FALSE(config.worker.pipeline.lamp_mode_track_near_border);
   EXPECT_FALSE(config.worker.pipeline.calibration.exposure.follow_deformation);
   EXPECT_TRUE(config.worker.pipeline.lamp_mode_exposure_follows_surface);
+  EXPECT_FALSE(config.worker.pipeline.calibration.keyframes_by_reported_exposure);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 1.0);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.raw_frame_exponent, 0.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.light_distances.max_log_spread, 0.1);

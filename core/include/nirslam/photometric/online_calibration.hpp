@@ -169,6 +169,9 @@ struct OnlineCalibrationOptions {
   // every draw. The pipeline's illuminated mode turns both off (PipelineOptions::lamp_mode_*):
   // there they cost the lamp mode's ATE (README "Photometric calibration accuracy").
   bool keyframes_follow_deformation = true;
+  // Keyframes chosen on the reported exposure's change when the source reports one (and
+  // use_reported_exposures), not on the front end's estimate (see online_calibration.cpp).
+  bool keyframes_by_reported_exposure = true;
   // Fraction of full scale at or above which a keyframe sample counts as saturated (the back end's
   // one-sided constraint e V a L >= G(level), photometric_backend.hpp); negative: the tracker's
   // saturation_level. Only the true clip (full scale) says something about the irradiance scale:

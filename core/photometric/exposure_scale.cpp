@@ -44,12 +44,4 @@ ReportedExposureScale reported_exposure_scale(const std::vector<ExposureSample>&
   return tracker.current();
 }
 
-std::vector<ExposureSample> on_reported_scale(const std::vector<ExposureSample>& history) {
-  const double factor = reported_exposure_scale(history).factor;
-  std::vector<ExposureSample> scaled = history;
-  for (ExposureSample& s : scaled)
-    if (s.estimated) *s.estimated *= factor;
-  return scaled;
-}
-
 }  // namespace nirslam

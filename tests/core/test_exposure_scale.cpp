@@ -39,26 +39,19 @@ TEST(ReportedExposureScale, TheMedianFramePutsTheChainOnTheReportedScale) {
   const ReportedExposureScale scale = reported_exposure_scale(history);
   EXPECT_EQ(scale.frames, 59);  // the first frame (= reported by construction) left out
   EXPECT_NEAR(scale.factor, 1.0 / 0.93, 0.006);
-  const std::vector<ExposureSample> scaled = on_reported_scale(history);
-  ASSERT_EQ(scaled.size(), history.size());
   int within_two_percent = 0;  // the chain's +-1 % and the median's own offset
-  for (std::size_t i = 0; i < scaled.size(); ++i) {
-    EXPECT_NEAR(*scaled[i].estimated / *history[i].estimated, scale.factor, 1e-12);  // every ratio kept
-    within_two_percent += std::abs(*scaled[i].estimated / *scaled[i].reported - 1.0) < 0.02;
-  }
+  for (const ExposureSample& s : history)
+    within_two_percent += std::abs(*s.estimated * scale.factor / *s.reported - 1.0) < 0.02;
   EXPECT_GE(within_two_percent, 50);  // the 50 frames after the ramp (the ramp's: up to 7 %)
 }
 
 TEST(ReportedExposureScale, WithoutReportedExposuresNothingChanges) {
   std::vector<ExposureSample> history = ramp_history();
   for (ExposureSample& s : history) s.reported.reset();
-  history[3].estimated.reset();  // a kept frame has no estimate
+  history[3].estimated.reset();  // a kept frame has no estimate: left out, no failure
   const ReportedExposureScale scale = reported_exposure_scale(history);
   EXPECT_EQ(scale.frames, 0);
   EXPECT_EQ(scale.factor, 1.0);
-  const std::vector<ExposureSample> scaled = on_reported_scale(history);
-  EXPECT_FALSE(scaled[3].estimated.has_value());
-  EXPECT_EQ(*scaled[10].estimated, *history[10].estimated);
 }
 
 TEST(ReportedExposureScale, RestartsAndNonFiniteValuesAreLeftOut) {

@@ -41,9 +41,7 @@ private:
   std::priority_queue<double, std::vector<double>, std::greater<double>> upper_;  // min-heap
 };
 
+// The same over a whole history (the tracker fed with every sample).
 ReportedExposureScale reported_exposure_scale(const std::vector<ExposureSample>& history);
-
-// `history` with every estimated exposure multiplied by reported_exposure_scale(history).factor.
-std::vector<ExposureSample> on_reported_scale(const std::vector<ExposureSample>& history);
 
 }  // namespace nirslam

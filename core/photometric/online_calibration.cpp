@@ -274,12 +274,15 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
     // front end's estimate is then an output only (under a co-located lamp a constant-radiance
     // estimate moves with the lamp's distance, and keyframes chosen on it changed with the
     // estimator's details).
-    ExposureEstimate for_selection = out.estimate;
-    if (known && options_.keyframes_by_reported_exposure) {
-      for_selection.exposure = *reported;
-      for_selection.status = ExposureStatus::Estimated;
+    const bool by_reported = known && options_.keyframes_by_reported_exposure;
+    ExposureEstimate reported_estimate;  // only what the selector reads: not a copy of the estimate's text
+    if (by_reported) {
+      reported_estimate.frame_index = frame.index;
+      reported_estimate.exposure = *reported;
+      reported_estimate.status = ExposureStatus::Estimated;
     }
-    const KeyframeDecision decision = selector_.consider(tracked, for_selection, frame.timestamp_s);
+    const KeyframeDecision decision =
+        selector_.consider(tracked, by_reported ? reported_estimate : out.estimate, frame.timestamp_s);
     if (decision.keyframe) {
       out.keyframe = true;
       Job job;

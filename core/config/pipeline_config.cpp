@@ -92,6 +92,18 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read_flag("keyframes_by_reported_exposure", pipeline.calibration.keyframes_by_reported_exposure);
   calibration.read_flag("track_near_border", pipeline.calibration.tracker.skip_coarse_levels_at_border);
   calibration.read<double>("vignette_rim_curvature_weight", pipeline.calibration.backend.vignette_rim_curvature_weight, 0.0, 1e6);
+  // The back end's residual form, without and with the lamp's factor (photometric_backend.hpp).
+  for (const auto& [key, form] : {std::pair{"residual", &pipeline.calibration.backend.residual_form},
+                                  std::pair{"lamp_mode_residual", &pipeline.calibration.backend.lit_residual_form}}) {
+    if (const auto name = calibration.read_text(key)) {
+      if (*name == "predicted")
+        *form = PhotometricResidualForm::PredictedGrey;
+      else if (*name == "observed")
+        *form = PhotometricResidualForm::ObservedInverse;
+      else
+        calibration.fail_at(key, "expected predicted or observed, got '" + *name + "'");
+    }
+  }
   calibration.read_flag("lamp_mode_keyframes_follow_surface", pipeline.lamp_mode_keyframes_follow_surface);
   calibration.read<double>("lamp_mode_vignette_rim_curvature_weight", pipeline.lamp_mode_vignette_rim_curvature_weight, 0.0, 1e6);
   calibration.read_flag("lamp_mode_track_near_border", pipeline.lamp_mode_track_near_border);

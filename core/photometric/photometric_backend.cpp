@@ -76,6 +76,12 @@ bool monotonic_on_grid(const Eigen::Vector4d& c) {
   return true;
 }
 
+// sqrt(X) of a predicted irradiance G = e V a L (grey-level units), X = G / 255 clamped to the
+// response's domain; floored above 0, where dI/dG = f'(u) / (2u) has no finite value.
+double predicted_sqrt_irradiance(double irradiance_grey) {
+  return std::sqrt(std::clamp(irradiance_grey / 255.0, 1e-6, 1.0));
+}
+
 }  // namespace
 
 Eigen::Vector3d vignette_from_monotone(const Eigen::Vector3d& q, Eigen::Matrix3d* dv_dq) {
@@ -208,6 +214,28 @@ double photometric_residual(const InverseResponse& inverse, const Eigen::Vector3
     (*jacobian)[8] = -1.0;
   }
   return G / eV - radiance;
+}
+
+double predicted_grey_residual(const Eigen::Vector4d& c, const Eigen::Vector3d& v, double exposure, double radiance,
+                               double grey, double radius, double illumination, PhotometricJacobian* jacobian) {
+  const double r2 = radius * radius;
+  const double V = 1.0 + r2 * (v[0] + r2 * (v[1] + r2 * v[2]));
+  const double eVa = exposure * V * illumination;
+  const double u = predicted_sqrt_irradiance(eVa * radiance);
+  Eigen::Vector4d h, dh;
+  response_basis_in_sqrt_irradiance(u, h, dh);
+  const double s = grey - 255.0 * (u + c.dot(h));
+  if (jacobian != nullptr) {
+    const double k = (1.0 + c.dot(dh)) / (2.0 * u);  // dI/dG at the prediction
+    jacobian->head<4>() = -255.0 * h;
+    const double dV = -k * exposure * illumination * radiance;
+    (*jacobian)[4] = dV * r2;
+    (*jacobian)[5] = dV * r2 * r2;
+    (*jacobian)[6] = dV * r2 * r2 * r2;
+    (*jacobian)[7] = -k * V * illumination * radiance;
+    (*jacobian)[8] = -k * eVa;
+  }
+  return s;
 }
 
 double lit_photometric_residual(const InverseResponse& inverse, const Eigen::Vector3d& v, double exposure,
@@ -413,13 +441,22 @@ void PhotometricBackend::initialise_radiances(State& state) const {
   }
 }
 
-double PhotometricBackend::scaled_residual(const State& state, std::size_t point, std::size_t i, double& slope) const {
+double PhotometricBackend::scaled_residual(const State& state, std::size_t point, std::size_t i, double& slope,
+                                           double* u_at) const {
   const Observation& o = observations_[i];
+  const double irradiance =
+      state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * o.illumination * state.radiance[point];
+  if (predicts_grey()) {
+    const double u = predicted_sqrt_irradiance(irradiance);
+    const double f = f_of_u(state.c, u, &slope);
+    if (u_at != nullptr) *u_at = u;
+    return o.grey - 255.0 * f;
+  }
   const double u = state.u[i];
   slope = f_slope(state.c, u);
+  if (u_at != nullptr) *u_at = u;
   const double k = slope / (2.0 * std::max(u, 1e-6));
-  return (255.0 * u * u - state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * o.illumination *
-                              state.radiance[point]) * k;
+  return (255.0 * u * u - irradiance) * k;
 }
 
 double PhotometricBackend::model_noise_weight(double u, double slope) const {
@@ -480,10 +517,10 @@ double PhotometricBackend::data_cost(const State& state, double delta) const {
   double cost = 0.0;
   for (std::size_t pi = 0; pi < points_.size(); ++pi) {
     for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
-      double slope = 0.0;
+      double slope = 0.0, u = 0.0;
       const Observation& o = observations_[static_cast<std::size_t>(i)];
-      const double s = bounded(o, scaled_residual(state, pi, static_cast<std::size_t>(i), slope)) *
-                       std::sqrt(model_noise_weight(state.u[static_cast<std::size_t>(i)], slope));
+      const double s = bounded(o, scaled_residual(state, pi, static_cast<std::size_t>(i), slope, &u)) *
+                       std::sqrt(model_noise_weight(u, slope));
       cost += o.gradient_weight * twice_huber_loss(s, delta);
     }
   }
@@ -768,9 +805,9 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     for (std::size_t pi = 0; pi < points_.size(); ++pi)
       for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
         if (observations_[static_cast<std::size_t>(i)].bound != 0) continue;
-        double slope = 0.0;
-        const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope);
-        abs_s.push_back(std::abs(s) * std::sqrt(model_noise_weight(state.u[static_cast<std::size_t>(i)], slope)));
+        double slope = 0.0, u = 0.0;
+        const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope, &u);
+        abs_s.push_back(std::abs(s) * std::sqrt(model_noise_weight(u, slope)));
       }
     delta = options_.huber_k * std::max(1.4826 * median_in_place(abs_s), 0.5);
   }
@@ -810,7 +847,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   // is a constant gamma, which the linear and gamma-like curves are.
   const auto curvature_grey = [](int j) { return 255.0 * std::exp(-0.05 * (kCurvatureLevels - 1 - j)); };
   int curvature_first = 0;
-  while (curvature_first < kCurvatureLevels - 3 && curvature_grey(curvature_first) < step.grey_high - 24.0) ++curvature_first;
+  while (curvature_first < kCurvatureLevels - 3 && curvature_grey(curvature_first) < step.grey_high - options_.log_curvature_overlap_grey) ++curvature_first;
   const auto log_curvature = [&](const Eigen::Vector4d& c, Eigen::Matrix<double, kCurvatureLevels - 2, 1>& rho,
                                  Eigen::Matrix<double, kCurvatureLevels - 2, 4>* jacobian) {
     const InverseResponse& inverse = inverse_response(c);
@@ -912,17 +949,20 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
         for (int i = p.begin; i < p.end; ++i) {
           const Observation& o = observations_[static_cast<std::size_t>(i)];
           const double e = st.exposure[static_cast<std::size_t>(o.keyframe)];
-          const double u = st.u[static_cast<std::size_t>(i)];
+          const double r2 = o.radius * o.radius;
+          const double V = vignette_at(st.v, o.radius);
+          const double eV = e * V * o.illumination;  // the light's factor a rides with e V
+          // Linearised at the observed irradiance G(I) or, in the predicted form, at e V a L; the
+          // residual r in radiance units either way (s = r e V k), so that dr/dL = -1 and the
+          // derivatives in v and e below hold for both (PhotometricResidualForm).
+          const bool predicted = predicts_grey();
+          const double u = predicted ? predicted_sqrt_irradiance(eV * L) : st.u[static_cast<std::size_t>(i)];
           Eigen::Vector4d h, dh;
           response_basis_in_sqrt_irradiance(u, h, dh);
           const double slope = 1.0 + st.c.dot(dh);
           const double k = slope / (2.0 * std::max(u, 1e-6));
-          const double G = 255.0 * u * u;
-          const double r2 = o.radius * o.radius;
-          const double V = vignette_at(st.v, o.radius);
-          const double eV = e * V * o.illumination;  // the light's factor a rides with e V
-          const double r = G / eV - L;
           const double eVk = eV * k;
+          const double r = predicted ? (o.grey - 255.0 * (u + st.c.dot(h))) / eVk : 255.0 * u * u / eV - L;
           const double noise_weight = model_noise_weight(u, slope);
           const double s = r * eVk * std::sqrt(noise_weight);
           if (bounded(o, s) == 0.0 && o.bound != 0) {  // a clipped sample whose bound holds: no cost
@@ -1189,13 +1229,13 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     std::vector<double> violations;
     for (std::size_t pi = 0; pi < points_.size(); ++pi)
       for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
-        double slope = 0.0;
-        const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope);
+        double slope = 0.0, u = 0.0;
+        const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope, &u);
         if (const Observation& o = observations_[static_cast<std::size_t>(i)]; o.bound != 0) {
           if (bounded(o, s) != 0.0) violations.push_back(std::abs(s));
           continue;
         }
-        if (std::abs(s) * std::sqrt(model_noise_weight(state.u[static_cast<std::size_t>(i)], slope)) <= delta) squared += s * s, ++inliers;
+        if (std::abs(s) * std::sqrt(model_noise_weight(u, slope)) <= delta) squared += s * s, ++inliers;
       }
     step.residual_rms = inliers ? std::sqrt(squared / static_cast<double>(inliers)) : 0.0;
     step.clip_bounds_violated = static_cast<int>(violations.size());

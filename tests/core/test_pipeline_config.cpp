@@ -66,6 +66,16 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_EQ(config.worker.pipeline.calibration.keyframes_by_reported_exposure,
             OnlineCalibrationOptions{}.keyframes_by_reported_exposure);
   EXPECT_EQ(config.worker.pipeline.lamp_mode_exposure_follows_surface, PipelineOptions{}.lamp_mode_exposure_follows_surface);
+  EXPECT_EQ(config.worker.pipeline.calibration.backend.residual_form, PhotometricBackendOptions{}.residual_form);
+  EXPECT_EQ(PhotometricBackendOptions{}.residual_form, PhotometricResidualForm::PredictedGrey);
+  EXPECT_EQ(config.worker.pipeline.calibration.backend.lit_residual_form, PhotometricBackendOptions{}.lit_residual_form);
+}
+
+TEST(PipelineConfig, UnknownResidualFormNamesTheKeyAndTheValue) {
+  const std::string error =
+      pipeline_config_error(write_pipeline_yaml("residual_form", "calibration:\n  residual: grey\n"));
+  EXPECT_NE(error.find("calibration.residual"), std::string::npos) << error;
+  EXPECT_NE(error.find("'grey'"), std::string::npos) << error;
 }
 
 TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
@@ -120,7 +130,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  track_near_border: true\n  keyframes_follow_surface: false\n  vignette_rim_curvature_weight: 0.25\n"
                 "  lamp_mode_keyframes_follow_surface: true\n  lamp_mode_vignette_rim_curvature_weight: 0.5\n"
                 "  lamp_mode_track_near_border: false\n  exposure_follows_surface: false\n"
-                "  lamp_mode_exposure_follows_surface: true\n  keyframes_by_reported_exposure: false\n"));
+                "  lamp_mode_exposure_follows_surface: true\n  keyframes_by_reported_exposure: false\n"
+                "  residual: observed\n  lamp_mode_residual: predicted\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
@@ -137,6 +148,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_FALSE(config.worker.pipeline.calibration.exposure.follow_deformation);
   EXPECT_TRUE(config.worker.pipeline.lamp_mode_exposure_follows_surface);
   EXPECT_FALSE(config.worker.pipeline.calibration.keyframes_by_reported_exposure);
+  EXPECT_EQ(config.worker.pipeline.calibration.backend.residual_form, PhotometricResidualForm::ObservedInverse);
+  EXPECT_EQ(config.worker.pipeline.calibration.backend.lit_residual_form, PhotometricResidualForm::PredictedGrey);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.corrected_frame_exponent, 1.0);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.raw_frame_exponent, 0.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.light_distances.max_log_spread, 0.1);

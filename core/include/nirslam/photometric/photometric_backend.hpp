@@ -30,6 +30,14 @@
 // they equal the above only where G = e V L, and with the observed (noisy) G the iteration's
 // fixed point is not the cost's minimum (a vignette 2-4x too weak on simulated sequences).
 //
+// By default (PhotometricResidualForm::PredictedGrey, session 26) the grey-level error is not
+// carried back from r but computed as itself, s = I - 255 f(sqrt(e V a L / 255)), and linearised
+// at the predicted irradiance e V a L instead of the observed G(I): the same unknowns, steps and
+// Schur complement, with r = s / (e V a k) so that dr/dL = -1 and the derivatives in v and e above
+// are exact. The observed grey value then enters only as itself, so its noise (sensor, tracking)
+// is additive in s; through G(I) it went through the curved G (E[G(I + n)] > G(I) where G is
+// convex) and bent the fitted curve (README "Photometric calibration accuracy", session 26).
+//
 // Solver: Levenberg-Marquardt over the globals x = (c1..c4, v1..v3, free e_i),
 //   (J^T W J + lambda diag(J^T W J)) dx = -J^T W r          (Eq. 2-3, 2-4)
 // with the radiances eliminated by the Schur complement (each L_p is a 1 x 1 block), and the
@@ -155,6 +163,16 @@ double clip_bound_residual(const InverseResponse& inverse, const Eigen::Vector3d
                            double clip_grey, double radius, double illumination, bool saturated,
                            PhotometricJacobian* jacobian = nullptr);
 
+// The residual in the grey domain, predicted against observed: s = grey - 255 f(u),
+// u = sqrt(e V a L / 255) (X clamped to [0, 1]), grey in 0..255, a the light's factor (1 without).
+// The observed grey value enters only as itself, so its noise is additive in s: no errors in
+// variables through G(grey) (see PhotometricResidualForm). With a jacobian, ds / d(c, v, e, L) in
+// grey levels: -255 h(u), -k e a L r^2j, -k V a L, -k e V a, with k = f'(u) / (2u) = dI/dG at the
+// prediction.
+double predicted_grey_residual(const Eigen::Vector4d& c, const Eigen::Vector3d& v, double exposure, double radiance,
+                               double grey, double radius, double illumination = 1.0,
+                               PhotometricJacobian* jacobian = nullptr);
+
 // A plausible vignette by construction (the back end's "monotone" steps, see
 // PhotometricBackendOptions::lit_vignette_steps). With t = r^2, V = 1 + v1 t + v2 t^2 + v3 t^3
 // falls (weakly) on [0, 1] exactly when -dV/dt = -(v1 + 2 v2 t + 3 v3 t^2) >= 0 there, and a
@@ -180,6 +198,19 @@ enum class VignetteSteps {
   // Steps in q of vignette_from_monotone (plausible by construction, only V(1) > 0.05 is
   // bisected), so V moves freely inside the plausible set and along its boundary.
   Monotone,
+};
+
+// How an observation's grey value enters the back end's cost (Eq. 2-2 weighted to grey levels).
+enum class PhotometricResidualForm {
+  // The paper's r = G(I) / (e V a) - L scaled by e V a k, k = dI/dG at the OBSERVED grey value:
+  // the grey-level error to first order. Noise in I goes through the curved G and the slope k
+  // taken at the noisy value, which biases the fit where G bends (E[G(I + n)] != G(I)).
+  ObservedInverse,
+  // s = I - 255 f(sqrt(e V a L / 255)) (predicted_grey_residual): the grey-level error itself,
+  // the maximum-likelihood form for noise additive in grey levels. Same unknowns, Schur
+  // complement and steps; only the point of linearisation (the predicted, not the observed,
+  // irradiance) and the residual change.
+  PredictedGrey,
 };
 
 struct PhotometricBackendOptions {
@@ -210,9 +241,11 @@ struct PhotometricBackendOptions {
   // so the lamp-lit problem keeps the old value until that is understood.
   double lit_gradient_mu = 25.0;
   double huber_k = 2.0;               // Huber width in robust standard deviations of the residual
+  PhotometricResidualForm residual_form = PhotometricResidualForm::PredictedGrey;
+  PhotometricResidualForm lit_residual_form = PhotometricResidualForm::ObservedInverse;
   double coefficient_prior_weight = 1e-4;  // per observation, on (c - c_initial), in weighted-residual units
   // Per observation, on the squared second differences of log f^-1 over log I (grey levels 5 %
-  // apart, up to 255) from about 24 grey levels below the top of the observed range
+  // apart, up to 255) from log_curvature_overlap_grey below the top of the observed range
   // (BackendStep::grey_high) on: a straight line there is a constant gamma; the weight is scaled
   // by (255 - grey_high) / 255, the part of the scale the data leave open. Inside the observed grey range the data fix G = f^-1 only up to a scale when no frame
   // comes near saturation (G(255) = 255 lies outside; see test_photometric_diagnostics.cpp): the
@@ -222,6 +255,13 @@ struct PhotometricBackendOptions {
   // Measured on the 16-row constant-radiance table (README), rows meeting response / vignette /
   // exposure median: weight 3: 3 / 6 / 7, 30: 5 / 6 / 6, 100: 6 / 7 / 8, 300: 5 / 5 / 7.
   double log_curvature_weight = 100.0;
+  // Where that prior starts, in grey levels below the top of the observed range. 0 since session
+  // 26: inside the range the data decide (in the grey-domain form they fix G's shape there to a
+  // tenth of a grey level modulo the scale). Measured over three draws with that form (README):
+  // 24 (before) response means 6.46 gl, 0 5.73, -24 (a gap above the range) 4.98; linear and gamma
+  // rows the same to 0.3 gl, log and filmic rows lower the higher the start (their log G bends up
+  // towards white, which the straight continuation misses either way).
+  double log_curvature_overlap_grey = 0.0;
   // The same when the window's observations carry the co-located light's factor: 100 there made
   // the `illuminated` bench worse on 7 of 12 (parking 20 / 50 / 100 W 0.24 / 0.057 / 0.047 ->
   // 0.71 / 0.19 / 0.40 m; README "Illuminator correction"), so the lamp-lit problem keeps 3.
@@ -375,7 +415,8 @@ private:
   double data_cost(const State& state, double delta) const;
   // The scaled residual s = (G - e V a L) k of observation i of point `point` in grey levels
   // (k = dI/dG; exposures pre-divided by e_scale), and f'(u) through `slope`.
-  double scaled_residual(const State& state, std::size_t point, std::size_t i, double& slope) const;
+  // s of observation i of `point` in grey levels (the form's), with f'(u) and u where it is linearised.
+  double scaled_residual(const State& state, std::size_t point, std::size_t i, double& slope, double* u_at = nullptr) const;
   // The lit observations' weight from the uncertain factor a (lit_log_illumination_sigma): the
   // inverse variance of the grey-level residual at u with f'(u) = slope, times model_noise_norm_.
   double model_noise_weight(double u, double slope) const;
@@ -395,6 +436,9 @@ private:
   std::vector<Point> points_;
   std::vector<Observation> observations_;
   bool lit_problem_ = false;  // the window's observations carry the light's factor (build_problem)
+  bool predicts_grey() const {
+    return (lit_problem_ ? options_.lit_residual_form : options_.residual_form) == PhotometricResidualForm::PredictedGrey;
+  }
   double model_noise_norm_ = 1.0;  // makes model_noise_weight average 1 at the solve's start
   double model_sigma_log_ = 0.0;    // sigma of log a in this solve (given or estimated)
   double model_noise_grey_ = 1.0;   // image noise in this solve (given or estimated)

@@ -924,6 +924,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   State trial;
   int total_iterations = 0;
 
+  const bool predicted = predicts_grey();
   // Levenberg-Marquardt from `st` for up to `iterations`; returns whether it converged.
   const auto run_lm = [&](State& st, int iterations) {
     double lambda = 1e-3;
@@ -955,7 +956,6 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           // Linearised at the observed irradiance G(I) or, in the predicted form, at e V a L; the
           // residual r in radiance units either way (s = r e V k), so that dr/dL = -1 and the
           // derivatives in v and e below hold for both (PhotometricResidualForm).
-          const bool predicted = predicts_grey();
           const double u = predicted ? predicted_sqrt_irradiance(eV * L) : st.u[static_cast<std::size_t>(i)];
           Eigen::Vector4d h, dh;
           response_basis_in_sqrt_irradiance(u, h, dh);

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <sstream>
 
 #include <gtest/gtest.h>
 
@@ -12,6 +13,23 @@
 
 namespace nirslam {
 namespace {
+
+// Each analytic derivative against the central difference of `residual` at p (steps relative to
+// the parameter's size), to 1e-5 relative; `where` (streamed) names the sample in a failure's message.
+template <int N, typename Residual, typename... Where>
+void expect_central_differences(const Eigen::Matrix<double, N, 1>& p, const Eigen::Matrix<double, N, 1>& analytic,
+                                const Residual& residual, const Where&... where) {
+  std::ostringstream sample;
+  ((sample << ' ' << where), ...);
+  for (int k = 0; k < N; ++k) {
+    const double h = 1e-6 * std::max(1.0, std::abs(p[k]));
+    Eigen::Matrix<double, N, 1> plus = p, minus = p;
+    plus[k] += h;
+    minus[k] -= h;
+    const double numeric = (residual(plus) - residual(minus)) / (2.0 * h);
+    EXPECT_NEAR(analytic[k], numeric, 1e-5 * std::max(1.0, std::abs(numeric))) << "parameter " << k << sample.str();
+  }
+}
 
 TEST(PhotometricBackend, InverseResponseInvertsTheResponse) {
   for (const ResponsePreset preset : {ResponsePreset::Linear, ResponsePreset::Gamma, ResponsePreset::Log, ResponsePreset::Filmic}) {
@@ -42,15 +60,7 @@ TEST(PhotometricBackend, JacobianMatchesNumericDifferentiation) {
     const auto residual = [&](const Eigen::Matrix<double, 9, 1>& q) {
       return photometric_residual(InverseResponse(q.head<4>()), q.segment<3>(4), q[7], q[8], grey, radius);
     };
-    for (int k = 0; k < 9; ++k) {
-      const double h = 1e-6 * std::max(1.0, std::abs(p[k]));
-      Eigen::Matrix<double, 9, 1> plus = p, minus = p;
-      plus[k] += h;
-      minus[k] -= h;
-      const double numeric = (residual(plus) - residual(minus)) / (2.0 * h);
-      EXPECT_NEAR(J[k], numeric, 1e-5 * std::max(1.0, std::abs(numeric)))
-          << "parameter " << k << " grey " << grey << " radius " << radius << " exposure " << exposure;
-    }
+    expect_central_differences(p, J, residual, "grey", grey, "radius", radius, "exposure", exposure);
   }
 }
 
@@ -78,15 +88,7 @@ TEST(PhotometricBackend, PredictedGreyJacobianMatchesNumericDifferentiation) {
       const auto residual = [&](const Eigen::Matrix<double, 9, 1>& q) {
         return predicted_grey_residual(q.head<4>(), q.segment<3>(4), q[7], q[8], grey, radius, illumination);
       };
-      for (int k = 0; k < 9; ++k) {
-        const double h = 1e-6 * std::max(1.0, std::abs(p[k]));
-        Eigen::Matrix<double, 9, 1> plus = p, minus = p;
-        plus[k] += h;
-        minus[k] -= h;
-        const double numeric = (residual(plus) - residual(minus)) / (2.0 * h);
-        EXPECT_NEAR(J[k], numeric, 1e-5 * std::max(1.0, std::abs(numeric)))
-            << to_string(preset) << " parameter " << k << " X " << X << " radius " << radius;
-      }
+      expect_central_differences(p, J, residual, to_string(preset), "X", X, "radius", radius);
     }
   }
 }
@@ -121,15 +123,7 @@ TEST(PhotometricBackend, LitResidualJacobianMatchesNumericDifferentiation) {
     };
     Eigen::Matrix<double, 11, 1> analytic;
     analytic << J, dr_dlog_a * dlog_a_dd, dr_dlog_a / power;
-    for (int k = 0; k < 11; ++k) {
-      const double h = 1e-6 * std::max(1.0, std::abs(p[k]));
-      Eigen::Matrix<double, 11, 1> plus = p, minus = p;
-      plus[k] += h;
-      minus[k] -= h;
-      const double numeric = (residual(plus) - residual(minus)) / (2.0 * h);
-      EXPECT_NEAR(analytic[k], numeric, 1e-5 * std::max(1.0, std::abs(numeric)))
-          << "parameter " << k << " grey " << grey << " distance " << distance << " power " << power;
-    }
+    expect_central_differences(p, analytic, residual, "grey", grey, "distance", distance, "power", power);
   }
 }
 
@@ -684,15 +678,7 @@ TEST(PhotometricBackend, ClipBoundResidualJacobianMatchesNumericDifferentiation)
       return clip_bound_residual(InverseResponse(q.head<4>()), q.segment<3>(4), q[7], q[8], clip_grey, radius, illumination,
                                  saturated);
     };
-    for (int k = 0; k < 9; ++k) {
-      const double h = 1e-6 * std::max(1.0, std::abs(p[k]));
-      Eigen::Matrix<double, 9, 1> plus = p, minus = p;
-      plus[k] += h;
-      minus[k] -= h;
-      const double numeric = (residual(plus) - residual(minus)) / (2.0 * h);
-      EXPECT_NEAR(J[k], numeric, 1e-5 * std::max(1.0, std::abs(numeric)))
-          << "parameter " << k << (saturated ? " saturated" : " dark") << " radius " << radius << " exposure " << exposure;
-    }
+    expect_central_differences(p, J, residual, saturated ? "saturated" : "dark", "radius", radius, "exposure", exposure);
   }
   // Both sides of both bounds were exercised.
   for (int side = 0; side < 2; ++side) {

@@ -344,8 +344,9 @@ TEST(PhotometricAccuracy, RoomConstantRadianceKnownExposures) {
   // 0.09 / 0.04 / 0.63), over all levels 3.56 / 3.77 / 4.01, vignette 0.0021-0.0023, exposure
   // 1.84 / 0.68 / 0.34 %. The response over all levels is no longer asserted here (the straight
   // continuation is right for linear and gamma curves, OutdoorGammaKnownExposures pins one); the
-  // exposure bound is 2.5 % for seed 1's 2.19 % (the patches brighter than grey 144 read through
-  // the continuation).
+  // exposure bound is 2.5 % for seed 1's 2.19 % (not understood; not the patches brighter than
+  // grey 144, read through the continuation: the exposure estimator's trust fall-off outside the
+  // fitted range at 2 / 8 / unlimited grey levels gives 2.03 / 2.19 / 1.91 %).
   EXPECT_GT(r.irradiance_scale, 0.65);
   EXPECT_LT(r.irradiance_scale, 1.05);
   EXPECT_LT(r.scale_free_mean_grey, 0.2);

@@ -1242,9 +1242,9 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     step.clip_bound_violation = median_in_place(violations);
   }
   char text[200];
-  std::snprintf(text, sizeof text, "%s after %d iterations%s (%d keyframes, %d points, residual %.2f grey levels)",
+  std::snprintf(text, sizeof text, "%s after %d iterations%s (%d keyframes, %d points, residual %.2f grey levels, %s)",
                 step.converged ? "converged" : "iterating", step.iterations, step.multi_started ? " (multi-start)" : "",
-                step.keyframes, step.points, step.residual_rms);
+                step.keyframes, step.points, step.residual_rms, predicted ? "I - f(e V L)" : "G(I) / (e V) - L");
   step.status = text;
   if (step.clip_bounds > 0) {
     char bounds[120];

@@ -231,6 +231,9 @@ TEST(PhotometricBackend, PredictedGreyResidualIsUnbiasedUnderGreyNoise) {
     for (auto& kf : synthetic(truth, vignette, 30, 60, true, true, 0.8, 3, 2.0).keyframes) backend.add_keyframe(std::move(kf));
     const BackendStep step = backend.optimise(100, true);
     EXPECT_TRUE(step.ok && step.response_estimated) << step.status;
+    // The status (calibration.json, the Photometric panel) says which residual the fit minimised.
+    const char* residual = form == PhotometricResidualForm::PredictedGrey ? "I - f(e V L)" : "G(I) / (e V) - L";
+    EXPECT_NE(step.status.find(residual), std::string::npos) << step.status;
     const auto estimate = backend.response().inverse_table(256), exact = truth.inverse_table(256);
     const int low = static_cast<int>(std::ceil(step.grey_low)), high = static_cast<int>(step.grey_high);
     // log s: the median of log(G_est / G_true) over the range, then the mean error after it.

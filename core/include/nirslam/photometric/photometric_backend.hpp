@@ -413,9 +413,9 @@ private:
   void build_problem(const std::vector<int>& window);
   void update_u(State& state) const;
   double data_cost(const State& state, double delta) const;
-  // The scaled residual s = (G - e V a L) k of observation i of point `point` in grey levels
-  // (k = dI/dG; exposures pre-divided by e_scale), and f'(u) through `slope`.
-  // s of observation i of `point` in grey levels (the form's), with f'(u) and u where it is linearised.
+  // The residual s of observation i of point `point` in grey levels (exposures pre-divided by
+  // e_scale): (G - e V a L) k, k = dI/dG, in the observed form; I - 255 f(u) in the predicted one.
+  // f'(u) through `slope`, and u where it is linearised (observed or predicted) through `u_at`.
   double scaled_residual(const State& state, std::size_t point, std::size_t i, double& slope, double* u_at = nullptr) const;
   // The lit observations' weight from the uncertain factor a (lit_log_illumination_sigma): the
   // inverse variance of the grey-level residual at u with f'(u) = slope, times model_noise_norm_.

@@ -82,6 +82,23 @@ double predicted_sqrt_irradiance(double irradiance_grey) {
   return std::sqrt(std::clamp(irradiance_grey / 255.0, 1e-6, 1.0));
 }
 
+// The predicted grey value at irradiance e V a L (grey-level units), against the observed one:
+// u = sqrt(X) where it is linearised, the basis h(u), f'(u) and s = grey - 255 f(u). One formula
+// for predicted_grey_residual(), the cost and the LM step.
+struct GreyPrediction {
+  double u = 0.0, slope = 0.0, s = 0.0;
+  Eigen::Vector4d h = Eigen::Vector4d::Zero();
+};
+GreyPrediction predict_grey(const Eigen::Vector4d& c, double irradiance_grey, double grey) {
+  GreyPrediction p;
+  p.u = predicted_sqrt_irradiance(irradiance_grey);
+  Eigen::Vector4d dh;
+  response_basis_in_sqrt_irradiance(p.u, p.h, dh);
+  p.slope = 1.0 + c.dot(dh);
+  p.s = grey - 255.0 * (p.u + c.dot(p.h));
+  return p;
+}
+
 }  // namespace
 
 Eigen::Vector3d vignette_from_monotone(const Eigen::Vector3d& q, Eigen::Matrix3d* dv_dq) {
@@ -221,13 +238,10 @@ double predicted_grey_residual(const Eigen::Vector4d& c, const Eigen::Vector3d& 
   const double r2 = radius * radius;
   const double V = 1.0 + r2 * (v[0] + r2 * (v[1] + r2 * v[2]));
   const double eVa = exposure * V * illumination;
-  const double u = predicted_sqrt_irradiance(eVa * radiance);
-  Eigen::Vector4d h, dh;
-  response_basis_in_sqrt_irradiance(u, h, dh);
-  const double s = grey - 255.0 * (u + c.dot(h));
+  const GreyPrediction p = predict_grey(c, eVa * radiance, grey);
   if (jacobian != nullptr) {
-    const double k = (1.0 + c.dot(dh)) / (2.0 * u);  // dI/dG at the prediction
-    jacobian->head<4>() = -255.0 * h;
+    const double k = p.slope / (2.0 * p.u);  // dI/dG at the prediction
+    jacobian->head<4>() = -255.0 * p.h;
     const double dV = -k * exposure * illumination * radiance;
     (*jacobian)[4] = dV * r2;
     (*jacobian)[5] = dV * r2 * r2;
@@ -235,7 +249,7 @@ double predicted_grey_residual(const Eigen::Vector4d& c, const Eigen::Vector3d& 
     (*jacobian)[7] = -k * V * illumination * radiance;
     (*jacobian)[8] = -k * eVa;
   }
-  return s;
+  return p.s;
 }
 
 double lit_photometric_residual(const InverseResponse& inverse, const Eigen::Vector3d& v, double exposure,
@@ -447,10 +461,10 @@ double PhotometricBackend::scaled_residual(const State& state, std::size_t point
   const double irradiance =
       state.exposure[static_cast<std::size_t>(o.keyframe)] * vignette_at(state.v, o.radius) * o.illumination * state.radiance[point];
   if (predicts_grey()) {
-    const double u = predicted_sqrt_irradiance(irradiance);
-    const double f = f_of_u(state.c, u, &slope);
-    if (u_at != nullptr) *u_at = u;
-    return o.grey - 255.0 * f;
+    const GreyPrediction p = predict_grey(state.c, irradiance, o.grey);
+    slope = p.slope;
+    if (u_at != nullptr) *u_at = p.u;
+    return p.s;
   }
   const double u = state.u[i];
   slope = f_slope(state.c, u);
@@ -956,13 +970,20 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           // Linearised at the observed irradiance G(I) or, in the predicted form, at e V a L; the
           // residual r in radiance units either way (s = r e V k), so that dr/dL = -1 and the
           // derivatives in v and e below hold for both (PhotometricResidualForm).
-          const double u = predicted ? predicted_sqrt_irradiance(eV * L) : st.u[static_cast<std::size_t>(i)];
-          Eigen::Vector4d h, dh;
-          response_basis_in_sqrt_irradiance(u, h, dh);
-          const double slope = 1.0 + st.c.dot(dh);
+          GreyPrediction at;
+          if (predicted) {
+            at = predict_grey(st.c, eV * L, o.grey);
+          } else {
+            at.u = st.u[static_cast<std::size_t>(i)];
+            Eigen::Vector4d dh;
+            response_basis_in_sqrt_irradiance(at.u, at.h, dh);
+            at.slope = 1.0 + st.c.dot(dh);
+          }
+          const double u = at.u, slope = at.slope;
+          const Eigen::Vector4d& h = at.h;
           const double k = slope / (2.0 * std::max(u, 1e-6));
           const double eVk = eV * k;
-          const double r = predicted ? (o.grey - 255.0 * (u + st.c.dot(h))) / eVk : 255.0 * u * u / eV - L;
+          const double r = predicted ? at.s / eVk : 255.0 * u * u / eV - L;
           const double noise_weight = model_noise_weight(u, slope);
           const double s = r * eVk * std::sqrt(noise_weight);
           if (bounded(o, s) == 0.0 && o.bound != 0) {  // a clipped sample whose bound holds: no cost

@@ -405,6 +405,7 @@ std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
   if (truth_) {
     view->true_response = truth_->response;
     view->true_vignette = truth_->vignette;
+    view->true_halo = truth_->halo;
   }
   if (calibration_) {
     const std::shared_ptr<const PhotometricEstimate> estimate = calibration_->estimate();

@@ -307,6 +307,15 @@ SimulatedSource::SimulatedSource(const SimulatorOptions& options) : simulator_(o
   lamp_ = std::make_shared<ManualIlluminator>(lamp);
 }
 
+std::optional<PhotometricTruth> SimulatedSource::photometric_truth() const {
+  const SimulatorOptions& o = simulator_.options();
+  PhotometricTruth truth{o.response, o.vignette, std::nullopt};
+  // The operator may change the power while it runs; the schedule says whether the lamp is part
+  // of the scene at all.
+  if (std::any_of(o.powers_w.begin(), o.powers_w.end(), [](double p) { return p > 0.0; })) truth.halo = simulator_.halo_factor();
+  return truth;
+}
+
 std::optional<Frame> SimulatedSource::next() {
   if (const auto power_w = lamp_->current_power_w()) simulator_.set_power(*power_w);
   std::optional<SimulatedFrame> f = simulator_.next(false);

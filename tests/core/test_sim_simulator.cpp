@@ -298,5 +298,19 @@ TEST(SimulatedSource, FramesCarryTheirPhotometricStateAndACamera) {
   EXPECT_EQ(*source->next()->illuminator_power_w, 120.0);
 }
 
+TEST(SimulatedSource, TruthCarriesTheHaloFactorWhenTheLampLights) {
+  SimulatorOptions o = twelve_small_frames(sim::SceneKind::Room);
+  const auto lit = make_simulated_source(o)->photometric_truth();
+  ASSERT_TRUE(lit);
+  ASSERT_TRUE(lit->halo);
+  // The 30-degree beam darkens the rim beyond the lens alone; the centre is 1 for both.
+  EXPECT_NEAR((*lit->halo)(0.0), 1.0, 1e-12);
+  EXPECT_LT((*lit->halo)(0.9), lit->vignette(0.9) - 0.1);
+  o.powers_w = {0.0};
+  const auto dark = make_simulated_source(o)->photometric_truth();
+  ASSERT_TRUE(dark);
+  EXPECT_FALSE(dark->halo);
+}
+
 }  // namespace
 }  // namespace nirslam

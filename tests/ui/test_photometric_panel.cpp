@@ -97,6 +97,24 @@ TEST_F(PhotometricPanelTest, CurvesSitWhereTheModelsPutThem) {
   EXPECT_TRUE(colour_at(shot, vignette, 0.8, ((*view->true_vignette)(0.8) - lo) / (hi - lo), colours::ground_truth));
 }
 
+TEST_F(PhotometricPanelTest, UnderTheLampTheHaloFactorIsTheTruthDrawn) {
+  Snapshot snapshot;
+  auto view = estimate_view();
+  // A steep halo (lens times a 30-degree beam): the truth line follows it, not the lens alone.
+  view->true_halo = VignetteModel{Eigen::Vector3d(-1.2, 0.6, -0.15)};
+  snapshot.photometric = view;
+  PhotometricPanel panel;
+  const cv::Mat shot = render(panel, snapshot);
+  const ScreenRect& vignette = panel.vignette_plot_rect();
+  ASSERT_FALSE(vignette.empty());
+  const double lo = std::floor(std::min((*view->true_halo)(1.0), view->vignette(1.0)) * 10.0 - 0.5) / 10.0;
+  const double hi = 1.02;
+  const double halo = (*view->true_halo)(0.8), lens = (*view->true_vignette)(0.8);
+  ASSERT_GT(lens - halo, 0.15);
+  EXPECT_TRUE(colour_at(shot, vignette, 0.8, (halo - lo) / (hi - lo), colours::ground_truth));
+  EXPECT_FALSE(colour_at(shot, vignette, 0.8, (lens - lo) / (hi - lo), colours::ground_truth, 1));
+}
+
 TEST_F(PhotometricPanelTest, LampBeamAndOffsetTakeTheirOwnRow) {
   Snapshot snapshot;
   auto view = estimate_view();

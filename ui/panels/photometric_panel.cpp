@@ -94,7 +94,9 @@ void PhotometricPanel::update_curves(const PhotometricView& view) {
       response_true_.push_back(255.0 * (*view.true_response)(t));
       inverse_true_.push_back(255.0 * view.true_response->inverse(t));
     }
-    if (view.true_vignette) vignette_true_.push_back((*view.true_vignette)(t));
+    // Under the lamp the estimate is the halo factor (lens times beam): compare it with that.
+    if (view.true_halo) vignette_true_.push_back((*view.true_halo)(t));
+    else if (view.true_vignette) vignette_true_.push_back((*view.true_vignette)(t));
   }
 }
 
@@ -206,7 +208,7 @@ void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
     shade_unmeasured(inverse_plot_, 0.0, 255.0, view.grey_low, view.grey_high);
   });
   ImGui::SameLine();
-  cell("Vignette V(r)", [&] {
+  cell(view.true_halo ? "Halo factor V(r) B(r)" : "Vignette V(r)", [&] {
     double lo = *std::min_element(vignette_.begin(), vignette_.end());
     for (double v : vignette_true_) lo = std::min(lo, v);
     lo = std::max(0.0, std::floor(lo * 10.0 - 0.5) / 10.0);
@@ -217,6 +219,10 @@ void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
     axes.y_decimals = 2;
     axes.x_caption = "radius (corner = 1)";
     vignette_plot_ = curve("##vignette", axes, x_unit_, vignette_, vignette_true_);
+    if (view.true_halo && ImGui::IsItemHovered())
+      ImGui::SetTooltip("The co-located lamp lights the scene: its beam B falls off towards the rim as the lens\n"
+                        "vignetting V does, and in every frame alike, so the estimate is their product, the halo factor.\n"
+                        "The ground truth drawn is the lens vignetting times the simulator's beam.");
     if (view.radius_high > 0.0) shade_unmeasured(vignette_plot_, 0.0, 1.0, 0.0, view.radius_high);
   });
   ImGui::SameLine();

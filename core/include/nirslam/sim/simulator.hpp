@@ -193,9 +193,7 @@ public:
   // The simulated lamp: a power set here (the operator's, or the sweep wizard's) replaces the
   // options' power schedule from the next frame on.
   std::shared_ptr<IlluminatorController> illuminator() const override { return lamp_; }
-  std::optional<PhotometricTruth> photometric_truth() const override {
-    return PhotometricTruth{simulator_.options().response, simulator_.options().vignette};
-  }
+  std::optional<PhotometricTruth> photometric_truth() const override;
 
   Simulator& simulator() { return simulator_; }
   const Simulator& simulator() const { return simulator_; }

@@ -17,7 +17,10 @@ class CameraModel;
 // The photometric parameters a source was made with, when it knows them (the simulator).
 struct PhotometricTruth {
   ResponseModel response;
-  VignetteModel vignette;
+  VignetteModel vignette;  // the lens's
+  // When a co-located lamp lights the scene: the lens vignetting times the lamp's beam pattern
+  // (the halo factor), which is what a calibration under that lamp estimates as its vignette.
+  std::optional<VignetteModel> halo;
 };
 class IlluminatorController;
 

@@ -55,6 +55,9 @@ struct PhotometricView {
   // Ground truth, when the source has it (simulator), for the overlays.
   std::optional<ResponseModel> true_response;
   std::optional<VignetteModel> true_vignette;
+  // Under the co-located lamp: the lens vignetting times the lamp's beam, the truth of what the
+  // vignette estimate then is (PhotometricTruth::halo).
+  std::optional<VignetteModel> true_halo;
   std::vector<ExposurePoint> exposures;  // oldest first, bounded length
 };
 

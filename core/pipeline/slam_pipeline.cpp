@@ -255,6 +255,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     truth_path_.push_back(c.cast<float>());
   }
 
+  last_illuminator_power_w_ = frame.illuminator_power_w;
   if (calibration_) {
     const auto start = Clock::now();
     // The correction holds its model until the odometry has tracked for a while (see
@@ -423,6 +424,7 @@ std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
     view->grey_low = estimate->grey_low;
     view->grey_high = estimate->grey_high;
     view->radius_high = estimate->radius_high;
+    view->lamp_not_modelled = !corrects_illuminator(options_.mode) && last_illuminator_power_w_ && *last_illuminator_power_w_ > 0.0;
     if (light_distances_)
       view->lamp_term = light_distance_points_ > 0
                             ? fmt::format("lamp term: {} odometry points", light_distance_points_)

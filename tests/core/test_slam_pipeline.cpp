@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -128,6 +129,22 @@ TEST(SlamPipeline, QualityModeRunsNoStage) {
   const auto trajectory = pipeline.trajectory_view();
   EXPECT_FALSE(trajectory->enabled);
   EXPECT_NE(trajectory->message.find("no odometry"), std::string::npos) << trajectory->message;
+}
+
+TEST(SlamPipeline, CalibrationAloneSaysWhenTheLampItDoesNotModelIsOn) {
+  for (const PipelineMode mode : {PipelineMode::Calibrated, PipelineMode::Illuminated})
+    for (const std::optional<double> power : {std::optional<double>(50.0), std::optional<double>(0.0), std::optional<double>()}) {
+      PipelineOptions options;
+      options.mode = mode;
+      options.calibration.background_thread = false;
+      SlamPipeline pipeline(options, pinhole(64, 48));
+      Frame frame = grey_frame(64, 48, 0);
+      frame.illuminator_power_w = power;
+      pipeline.process(frame);
+      const bool expected = mode == PipelineMode::Calibrated && power && *power > 0.0;
+      EXPECT_EQ(pipeline.photometric_view()->lamp_not_modelled, expected)
+          << to_string(mode) << ", power " << (power ? std::to_string(*power) : "not reported");
+    }
 }
 
 TEST(SlamPipeline, WithoutACameraTheOdometrySaysWhyItIsOff) {

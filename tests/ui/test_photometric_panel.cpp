@@ -115,6 +115,27 @@ TEST_F(PhotometricPanelTest, UnderTheLampTheHaloFactorIsTheTruthDrawn) {
   EXPECT_FALSE(colour_at(shot, vignette, 0.8, (lens - lo) / (hi - lo), colours::ground_truth, 1));
 }
 
+TEST_F(PhotometricPanelTest, ALampTheModeDoesNotModelIsFlagged) {
+  Snapshot snapshot;
+  auto view = estimate_view();
+  view->lamp_term.clear();  // calibration alone has no lamp term
+  snapshot.photometric = view;
+  const auto amber_pixels = [&](const cv::Mat& shot, float top, float bottom) {
+    int n = 0;
+    for (int y = static_cast<int>(top); y < static_cast<int>(bottom); ++y)
+      for (int x = 0; x < shot.cols; ++x) n += near(pixel(shot, x, y), colours::state_paused, 40);
+    return n;
+  };
+  PhotometricPanel quiet;
+  const cv::Mat without = render(quiet, snapshot);
+  const float status_bottom = quiet.response_plot_rect().min.y - 20.0f;
+  view->lamp_not_modelled = true;
+  PhotometricPanel flagged;
+  const cv::Mat with = render(flagged, snapshot);
+  // The amber words beside the legend, in the status row (the badge is green: converged).
+  EXPECT_GT(amber_pixels(with, 0.0f, status_bottom), amber_pixels(without, 0.0f, status_bottom) + 40);
+}
+
 TEST_F(PhotometricPanelTest, LampBeamAndOffsetTakeTheirOwnRow) {
   Snapshot snapshot;
   auto view = estimate_view();

@@ -138,6 +138,15 @@ void PhotometricPanel::draw_status(const PhotometricView& view) {
   ImGui::SameLine(0.0f, 16.0f);
   legend(view.true_response.has_value() || view.true_vignette.has_value(),
          view.grey_high > view.grey_low || view.radius_high > 0.0);
+  if (view.lamp_not_modelled) {
+    ImGui::SameLine(0.0f, 16.0f);
+    ImGui::TextColored(to_vec4(colours::state_paused), "lamp on, not modelled");
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("The frames report the co-located lamp on. Calibration alone assumes that a point's radiance\n"
+                        "is constant, but under the lamp it changes with the point's distance, and the fit bends the\n"
+                        "response (a plateau) and the vignette to explain that. The mode 'calibrated + lamp' models\n"
+                        "the lamp's distance factor.");
+  }
   if (!view.lamp_term.empty()) {
     ImGui::SameLine(0.0f, 16.0f);
     ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.lamp_term.c_str());

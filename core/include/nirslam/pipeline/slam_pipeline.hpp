@@ -252,6 +252,7 @@ private:
   std::optional<TrackedPose> last_pose_;
   std::optional<TrackedPose> previous_pose_;
   std::size_t light_distance_points_ = 0;  // of the last frame
+  std::optional<double> last_illuminator_power_w_;  // as the last frame reported it
   std::unique_ptr<KeyframeLightOffset> light_offset_;
   std::optional<LightOffsetEstimate> light_offset_estimate_;
   int light_offset_segment_ = -1;

@@ -48,6 +48,9 @@ struct PhotometricView {
   // The lamp's distance term (Illuminated mode): from how many odometry points the last frame's
   // distances came, or what it waits for; empty when the mode has no such term.
   std::string lamp_term;
+  // The frames report the lamp on while this mode's calibration assumes constant radiance (the
+  // calibrated mode): under a co-located lamp its estimate bends to explain the distance changes.
+  bool lamp_not_modelled = false;
   // The lamp's offset from the camera centre as estimated (or why not), and its beam split from
   // the halo factor when the lens vignetting is known; empty when there is none.
   std::string lamp_offset;

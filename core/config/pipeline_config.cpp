@@ -48,6 +48,14 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   stages.read<double>("lamp_distance_max_log_spread", pipeline.light_distances.max_log_spread, 0.0, 10.0);
   stages.read_flag("lamp_distance_plane_fit", pipeline.light_distances.fit_inverse_depth_plane);
   stages.read_flag("lamp_cosine_to_calibration", pipeline.lamp_cosine_to_calibration);
+  if (const auto source = stages.read_text("lamp_distance_source")) {
+    if (const auto parsed = lamp_distance_source_from_string(*source))
+      pipeline.lamp_distance_source = *parsed;
+    else
+      stages.fail_at("lamp_distance_source", "expected 'neighbours', 'tracks' or 'tracks-else-neighbours', got '" + *source + "'");
+  }
+  stages.read<double>("lamp_track_min_parallax_deg", pipeline.track_light_distances.min_parallax_deg, 0.1, 45.0);
+  stages.read<double>("lamp_track_max_ray_error_px", pipeline.track_light_distances.max_ray_error_px, 0.05, 100.0);
   stages.read<int>("hold_correction_frames", pipeline.hold_correction_frames, -1, 100000);
   stages.reject_unknown_keys();
 

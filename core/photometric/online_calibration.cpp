@@ -247,14 +247,17 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
 
   const TrackedFrame& tracked = tracker_.process(frame);
   const std::vector<double>* log_illumination = nullptr;
-  if (illumination != nullptr && illumination->light_distance_m) {
+  if (illumination != nullptr && (illumination->light_distance_m || illumination->track_light_distance_m)) {
     const double power = illumination->power_w.value_or(frame.illuminator_power_w.value_or(1.0));
     log_illumination_.resize(tracked.tracks.size());
     for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
       const Eigen::Vector2d& pixel = tracked.tracks[i].position;
+      std::optional<double> distance;
+      if (illumination->track_light_distance_m) distance = illumination->track_light_distance_m(tracked.tracks[i].id, pixel);
+      if (!distance && illumination->light_distance_m) distance = illumination->light_distance_m(pixel);
       log_illumination_[i] = illumination->light_cosine
-                                 ? nirslam::log_illumination(power, illumination->light_distance_m(pixel), illumination->light_cosine(pixel))
-                                 : nirslam::log_illumination(power, illumination->light_distance_m(pixel));
+                                 ? nirslam::log_illumination(power, distance, illumination->light_cosine(pixel))
+                                 : nirslam::log_illumination(power, distance);
     }
     log_illumination = &log_illumination_;
   }

@@ -84,6 +84,22 @@ std::optional<LampHaloModel> lamp_halo_model_from_string(const std::string& text
   return std::nullopt;
 }
 
+std::string_view to_string(LampDistanceSource source) {
+  switch (source) {
+    case LampDistanceSource::Neighbours: return "neighbours";
+    case LampDistanceSource::Tracks: return "tracks";
+    case LampDistanceSource::TracksElseNeighbours: return "tracks-else-neighbours";
+  }
+  return "neighbours";
+}
+
+std::optional<LampDistanceSource> lamp_distance_source_from_string(std::string_view text) {
+  for (const LampDistanceSource source :
+       {LampDistanceSource::Neighbours, LampDistanceSource::Tracks, LampDistanceSource::TracksElseNeighbours})
+    if (text == to_string(source)) return source;
+  return std::nullopt;
+}
+
 bool corrects_illuminator(PipelineMode mode) {
   return mode == PipelineMode::Illuminated || mode == PipelineMode::OdometryIlluminated;
 }
@@ -152,6 +168,8 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
     }
     if (calibration_ && corrects_illuminator(options_.mode) && options_.lamp_distances_to_calibration)
       light_distances_ = std::make_unique<LightDistanceMap>(*camera_, options_.light_distances);
+    if (light_distances_ && options_.lamp_distance_source != LampDistanceSource::Neighbours)
+      track_distances_ = std::make_unique<TrackLightDistances>(*camera_, options_.track_light_distances);
     if (light_distances_ && options_.estimate_light_offset && !options_.light_offset_configured)
       light_offset_ = std::make_unique<KeyframeLightOffset>(*pinhole_, options_.light_offset_estimation);
   }
@@ -265,7 +283,12 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     CorrectedFrame corrected;
     if (predict_light_distances()) {
       FrameIllumination illumination;
-      illumination.light_distance_m = [this](const Eigen::Vector2d& pixel) { return light_distances_->light_distance(pixel); };
+      if (options_.lamp_distance_source != LampDistanceSource::Tracks)
+        illumination.light_distance_m = [this](const Eigen::Vector2d& pixel) { return light_distances_->light_distance(pixel); };
+      if (track_distances_)
+        illumination.track_light_distance_m = [this](std::int64_t track_id, const Eigen::Vector2d&) {
+          return track_distances_->light_distance(track_id, *predicted_T_world_cam_, options_.odometry.light_offset);
+        };
       if (options_.lamp_cosine_to_calibration)
         illumination.light_cosine = [this](const Eigen::Vector2d& pixel) -> std::optional<double> {
           const auto geometry = light_distances_->light_geometry(pixel);
@@ -329,11 +352,13 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
 }
 
 bool SlamPipeline::predict_light_distances() {
+  predicted_T_world_cam_.reset();
   if (!light_distances_ || !last_pose_ || window_points_.empty()) return false;
   // Constant velocity: the frame about to come moves as the last one did.
   SE3 predicted = last_pose_->T_world_cam;
   if (previous_pose_ && previous_pose_->segment == last_pose_->segment)
     predicted = last_pose_->T_world_cam * (previous_pose_->T_world_cam.inverse() * last_pose_->T_world_cam);
+  predicted_T_world_cam_ = predicted;
   light_distances_->build(window_points_, predicted, options_.odometry.light_offset);
   return !light_distances_->empty();
 }
@@ -376,10 +401,12 @@ void SlamPipeline::remember_odometry(const OdometryResult& result) {
     previous_pose_.reset();
     window_points_.clear();
     if (light_distances_) light_distances_->clear();
+    if (track_distances_) track_distances_->clear();
     if (!result.T_world_cam) return;
   }
   previous_pose_ = last_pose_;
   last_pose_ = TrackedPose{result.frame_index, result.segment, *result.T_world_cam};
+  if (track_distances_) track_distances_->add_frame(calibration_->last_tracks(), *result.T_world_cam, result.segment);
   // The window's points change only when a keyframe is made (or tracking starts).
   if (result.is_keyframe || window_points_.empty()) odometry_->active_points(window_points_);
 }

@@ -78,6 +78,18 @@ TEST(PipelineConfig, UnknownResidualFormNamesTheKeyAndTheValue) {
   EXPECT_NE(error.find("'grey'"), std::string::npos) << error;
 }
 
+TEST(PipelineConfig, LampDistanceSourceIsReadAndAWrongOneNamed) {
+  const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
+      "lamp_distance_source", "pipeline:\n  lamp_distance_source: tracks-else-neighbours\n  lamp_track_min_parallax_deg: 2.5\n"));
+  EXPECT_EQ(config.worker.pipeline.lamp_distance_source, LampDistanceSource::TracksElseNeighbours);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.track_light_distances.min_parallax_deg, 2.5);
+  EXPECT_EQ(PipelineOptions{}.lamp_distance_source, LampDistanceSource::Neighbours);
+  const std::string error =
+      pipeline_config_error(write_pipeline_yaml("lamp_distance_source_bad", "pipeline:\n  lamp_distance_source: depth\n"));
+  EXPECT_NE(error.find("pipeline.lamp_distance_source"), std::string::npos) << error;
+  EXPECT_NE(error.find("'depth'"), std::string::npos) << error;
+}
+
 TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
   const PipelineConfig config =
       load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-repeatable.yaml");

@@ -186,6 +186,10 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   if (std::getenv("NIRSLAM_PIPELINE_PLANE_FIT") != nullptr) options.light_distances.fit_inverse_depth_plane = true;
   if (std::getenv("NIRSLAM_PIPELINE_PLANE_NORMAL") != nullptr) options.light_distances.normal_from_inverse_depth_plane = true;
   options.lamp_cosine_to_calibration = std::getenv("NIRSLAM_PIPELINE_COSINE") != nullptr;
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_DISTANCE_SOURCE"))
+    options.lamp_distance_source = lamp_distance_source_from_string(v).value_or(LampDistanceSource::Neighbours);
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_PARALLAX")) options.track_light_distances.min_parallax_deg = std::atof(v);
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_RAY_ERROR")) options.track_light_distances.max_ray_error_px = std::atof(v);
   SlamPipeline pipeline(options, simulator.camera());
   LampFeedRun run;
   PhotometricGroundTruth truth;
@@ -200,6 +204,28 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
     if (probing && result.light_distance_points > 0) probe.frame(simulator, *f, *pipeline.light_distances());
     if (result.light_distance_points == 0) continue;
     ++run.frames_with_distances;
+    if (std::getenv("NIRSLAM_PIPELINE_TRACK_PROBE") != nullptr && pipeline.light_distance_pose()) {
+      // Each source's log distance error per tracked patch, about the frame's median (monocular scale).
+      std::vector<double> by_tracks, by_neighbours;
+      for (const TrackObservation& track : pipeline.calibration()->last_tracks()) {
+        const auto true_distance = simulator.light_distance(f->depth, track.position);
+        if (!true_distance) continue;
+        if (pipeline.track_light_distances())
+          if (const auto d = pipeline.track_light_distances()->light_distance(track.id, *pipeline.light_distance_pose(), Eigen::Vector3d::Zero()))
+            by_tracks.push_back(std::log(*d / *true_distance));
+        if (const auto d = pipeline.light_distances()->light_distance(track.position)) by_neighbours.push_back(std::log(*d / *true_distance));
+      }
+      for (auto* v : {&by_tracks, &by_neighbours}) {
+        if (v->size() < 5) continue;
+        std::sort(v->begin(), v->end());
+        const double median = (*v)[v->size() / 2];
+        for (double& r : *v) r = std::abs(r - median);
+        std::sort(v->begin(), v->end());
+      }
+      auto q = [](const std::vector<double>& v, double p) { return v.size() < 5 ? -1.0 : v[static_cast<std::size_t>(p * (v.size() - 1))]; };
+      std::printf("probe frame %3lld tracks %3zu: %.3f %.3f | neighbours %3zu: %.3f %.3f\n", static_cast<long long>(f->frame.index),
+                  by_tracks.size(), q(by_tracks, 0.5), q(by_tracks, 0.9), by_neighbours.size(), q(by_neighbours, 0.5), q(by_neighbours, 0.9));
+    }
     std::vector<double> log_ratios;
     for (int y = 10; y < sim.height; y += 12)
       for (int x = 10; x < sim.width; x += 12) {

@@ -22,6 +22,7 @@
 // 1, the constant-radiance model of issue 6.
 
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <optional>
 
@@ -35,6 +36,10 @@ struct FrameIllumination {
   // Distance in metres from the illuminator to the surface seen at `pixel` (full-resolution pixel
   // coordinates of the frame); std::nullopt where unknown.
   std::function<std::optional<double>(const Eigen::Vector2d& pixel)> light_distance_m;
+  // The same for a tracked patch by its track (TrackObservation::id), where the caller follows
+  // the tracks themselves (the pipeline triangulates them from the odometry's poses). When set it
+  // is asked first, and light_distance_m (if set) answers where it gives std::nullopt.
+  std::function<std::optional<double>(std::int64_t track_id, const Eigen::Vector2d& pixel)> track_light_distance_m;
   // cos(theta) of the light's incidence on the surface seen at `pixel`. An empty function leaves
   // the cosine out everywhere; std::nullopt at a pixel leaves that observation out (a factor with
   // the cosine at one observation and without at another would be wrong).

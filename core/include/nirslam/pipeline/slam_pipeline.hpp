@@ -30,6 +30,7 @@
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/pipeline/keyframe_light_offset.hpp"
 #include "nirslam/pipeline/light_distance_map.hpp"
+#include "nirslam/pipeline/track_light_distances.hpp"
 #include "nirslam/sources/source.hpp"
 #include "nirslam/worker/photometric_view.hpp"
 #include "nirslam/worker/trajectory_view.hpp"
@@ -61,6 +62,11 @@ bool corrects_illuminator(PipelineMode mode);
 // calibration.lamp_halo (PipelineOptions::lamp_halo).
 enum class LampHaloModel { Polynomial, Beam };
 std::optional<LampHaloModel> lamp_halo_model_from_string(const std::string& text);
+
+enum class LampDistanceSource { Neighbours, Tracks, TracksElseNeighbours };
+std::string_view to_string(LampDistanceSource source);
+// "neighbours", "tracks", "tracks-else-neighbours"; std::nullopt for anything else.
+std::optional<LampDistanceSource> lamp_distance_source_from_string(std::string_view text);
 
 struct PipelineOptions {
   PipelineMode mode = PipelineMode::Calibrated;
@@ -118,6 +124,12 @@ struct PipelineOptions {
   // cosine lost its vignette (room 0.0037 -> 0.044; README "Illuminator correction", session 24).
   bool lamp_mode_track_near_border = false;
   LightDistanceMapOptions light_distances;
+  // Where a tracked patch's lamp distance comes from: the odometry's points near it (Neighbours,
+  // light_distance_map.hpp), the patch's own track triangulated from the odometry's poses
+  // (Tracks, track_light_distances.hpp: none until its rays span the parallax), or the track
+  // where it is triangulated and the neighbours elsewhere (TracksElseNeighbours).
+  LampDistanceSource lamp_distance_source = LampDistanceSource::Neighbours;
+  TrackLightDistancesOptions track_light_distances;
   // The lamp's offset from the camera centre (Illuminated mode): when odometry.light_offset is
   // not configured, estimated at every keyframe from the recent keyframes (keyframe_light_offset.hpp)
   // and reported; used for the calibration's lamp distances only with apply_estimated_light_offset
@@ -212,6 +224,9 @@ public:
   const OnlinePhotometricCalibration* calibration() const { return calibration_.get(); }
   // The lamp distances the calibration got for the last frame (Illuminated mode; else nullptr).
   const LightDistanceMap* light_distances() const { return light_distances_.get(); }
+  const TrackLightDistances* track_light_distances() const { return track_distances_.get(); }
+  // The pose the last frame's lamp distances were computed for (constant velocity).
+  const std::optional<SE3>& light_distance_pose() const { return predicted_T_world_cam_; }
   // The lamp offset estimated at the last keyframe (Illuminated mode, offset not configured).
   const std::optional<LightOffsetEstimate>& light_offset_estimate() const { return light_offset_estimate_; }
   // The offset the lamp distances use: configured, estimated and applied, or the camera centre.
@@ -248,6 +263,8 @@ private:
     SE3 T_world_cam;
   };
   std::unique_ptr<LightDistanceMap> light_distances_;
+  std::unique_ptr<TrackLightDistances> track_distances_;
+  std::optional<SE3> predicted_T_world_cam_;  // of the frame about to be calibrated
   std::vector<Eigen::Vector3d> window_points_;  // the odometry's active points, world frame
   std::optional<TrackedPose> last_pose_;
   std::optional<TrackedPose> previous_pose_;

@@ -100,6 +100,10 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read_flag("keyframes_by_reported_exposure", pipeline.calibration.keyframes_by_reported_exposure);
   calibration.read_flag("track_near_border", pipeline.calibration.tracker.skip_coarse_levels_at_border);
   calibration.read<double>("vignette_rim_curvature_weight", pipeline.calibration.backend.vignette_rim_curvature_weight, 0.0, 1e6);
+  // The straightness prior on log G above the observed grey range, without and with the lamp's
+  // factor (photometric_backend.hpp, log_curvature_weight and lit_log_curvature_weight).
+  calibration.read<double>("response_curvature_weight", pipeline.calibration.backend.log_curvature_weight, 0.0, 1e6);
+  calibration.read<double>("lamp_mode_response_curvature_weight", pipeline.calibration.backend.lit_log_curvature_weight, 0.0, 1e6);
   // The back end's residual form, without and with the lamp's factor (photometric_backend.hpp).
   for (const auto& [key, form] : {std::pair{"residual", &pipeline.calibration.backend.residual_form},
                                   std::pair{"lamp_mode_residual", &pipeline.calibration.backend.lit_residual_form}}) {

@@ -90,6 +90,17 @@ TEST(PipelineConfig, LampDistanceSourceIsReadAndAWrongOneNamed) {
   EXPECT_NE(error.find("'depth'"), std::string::npos) << error;
 }
 
+TEST(PipelineConfig, ResponseCurvatureWeightsWithAndWithoutTheLamp) {
+  EXPECT_DOUBLE_EQ(PipelineOptions{}.calibration.backend.lit_log_curvature_weight, 100.0);
+  const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
+      "curvature", "calibration:\n  response_curvature_weight: 30\n  lamp_mode_response_curvature_weight: 3\n"));
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.log_curvature_weight, 30.0);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.lit_log_curvature_weight, 3.0);
+  const std::string error =
+      pipeline_config_error(write_pipeline_yaml("curvature_bad", "calibration:\n  lamp_mode_response_curvature_weight: -1\n"));
+  EXPECT_NE(error.find("calibration.lamp_mode_response_curvature_weight"), std::string::npos) << error;
+}
+
 TEST(PipelineConfig, RepeatableBenchFileRunsTheBackEndInline) {
   const PipelineConfig config =
       load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-repeatable.yaml");

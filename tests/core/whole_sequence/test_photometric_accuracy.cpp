@@ -154,6 +154,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* mu = std::getenv("NIRSLAM_PHOTOMETRIC_MU")) options.backend.gradient_mu = std::atof(mu);
   if (const char* mu = std::getenv("NIRSLAM_PHOTOMETRIC_LIT_MU")) options.backend.lit_gradient_mu = std::atof(mu);
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_CURVATURE")) options.backend.log_curvature_weight = std::atof(w);
+  if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_LIT_CURVATURE")) options.backend.lit_log_curvature_weight = std::atof(w);
   if (const char* g = std::getenv("NIRSLAM_PHOTOMETRIC_CURVATURE_OVERLAP")) options.backend.log_curvature_overlap_grey = std::atof(g);
   // Clipped samples as one-sided constraints (photometric_backend.hpp): off, the black side too,
   // the keyframes' saturation level (online_calibration.hpp).

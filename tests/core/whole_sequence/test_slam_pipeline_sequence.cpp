@@ -186,6 +186,7 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   if (std::getenv("NIRSLAM_PIPELINE_PLANE_FIT") != nullptr) options.light_distances.fit_inverse_depth_plane = true;
   if (std::getenv("NIRSLAM_PIPELINE_PLANE_NORMAL") != nullptr) options.light_distances.normal_from_inverse_depth_plane = true;
   options.lamp_cosine_to_calibration = std::getenv("NIRSLAM_PIPELINE_COSINE") != nullptr;
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_LIT_CURVATURE")) options.calibration.backend.lit_log_curvature_weight = std::atof(v);
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_DISTANCE_SOURCE"))
     options.lamp_distance_source = lamp_distance_source_from_string(v).value_or(LampDistanceSource::Neighbours);
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_PARALLAX")) options.track_light_distances.min_parallax_deg = std::atof(v);

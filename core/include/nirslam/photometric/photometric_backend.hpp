@@ -262,10 +262,14 @@ struct PhotometricBackendOptions {
   // rows the same to 0.3 gl, log and filmic rows lower the higher the start (their log G bends up
   // towards white, which the straight continuation misses either way).
   double log_curvature_overlap_grey = 0.0;
-  // The same when the window's observations carry the co-located light's factor: 100 there made
-  // the `illuminated` bench worse on 7 of 12 (parking 20 / 50 / 100 W 0.24 / 0.057 / 0.047 ->
-  // 0.71 / 0.19 / 0.40 m; README "Illuminator correction"), so the lamp-lit problem keeps 3.
-  double lit_log_curvature_weight = 3.0;
+  // The same when the window's observations carry the co-located light's factor. 3 until session
+  // 27 (100 had made an early `illuminated` bench worse on 7 of 12, parking 0.24 / 0.057 / 0.047
+  // -> 0.71 / 0.19 / 0.40 m); with 3 the lamp-lit fits ran off in the irradiance scale (the pipeline's
+  // co-lit runs s = 7.9-15, a response flat over most irradiances, as the GUI's demo showed). On
+  // session 27's code, Table 2's lamp mode with 3 / 100: 0.0201 / 0.0208 m (from frame 15 0.0150 /
+  // 0.0145), its runs' co-lit response 18.45 / 12.23 grey levels (2-4 on 8 of the 9 rows outside
+  // the tunnel), halo factor 0.037 / 0.043 (README "Illuminator correction").
+  double lit_log_curvature_weight = 100.0;
   // Under the lamp the factor a comes from the odometry's distances, whose log ratios are off by
   // a few per cent (README "Illuminator correction"). An error in log a moves the grey level by
   // dI/d log X times it, which the grey-level residual would count in full; so a steeper G

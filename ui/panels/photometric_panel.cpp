@@ -217,7 +217,10 @@ void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
     shade_unmeasured(inverse_plot_, 0.0, 255.0, view.grey_low, view.grey_high);
   });
   ImGui::SameLine();
-  cell(view.true_halo ? "Halo factor V(r) B(r)" : "Vignette V(r)", [&] {
+  // Under the co-located lamp its beam B falls off towards the rim as the lens vignetting V does,
+  // in every frame alike, so what the calibration estimates is their product.
+  const bool lamp_lit = view.true_halo || view.lamp_not_modelled || !view.lamp_term.empty();
+  cell(lamp_lit ? "Halo factor V(r) B(r)" : "Vignette V(r)", [&] {
     double lo = *std::min_element(vignette_.begin(), vignette_.end());
     for (double v : vignette_true_) lo = std::min(lo, v);
     lo = std::max(0.0, std::floor(lo * 10.0 - 0.5) / 10.0);
@@ -228,10 +231,10 @@ void PhotometricPanel::draw_curves(const PhotometricView& view, float height) {
     axes.y_decimals = 2;
     axes.x_caption = "radius (corner = 1)";
     vignette_plot_ = curve("##vignette", axes, x_unit_, vignette_, vignette_true_);
-    if (view.true_halo && ImGui::IsItemHovered())
+    if (lamp_lit && ImGui::IsItemHovered())
       ImGui::SetTooltip("The co-located lamp lights the scene: its beam B falls off towards the rim as the lens\n"
-                        "vignetting V does, and in every frame alike, so the estimate is their product, the halo factor.\n"
-                        "The ground truth drawn is the lens vignetting times the simulator's beam.");
+                        "vignetting V does, and in every frame alike, so the estimate is their product, the halo factor.%s",
+                        view.true_halo ? "\nThe ground truth drawn is the lens vignetting times the simulator's beam." : "");
     if (view.radius_high > 0.0) shade_unmeasured(vignette_plot_, 0.0, 1.0, 0.0, view.radius_high);
   });
   ImGui::SameLine();

@@ -140,6 +140,34 @@ void right_aligned_text(float width, const char* text, ImU32 colour) {
     ImGui::TextUnformatted(text);
 }
 
+void same_line_if_fits(float next_width, float spacing) {
+  const float right_edge = ImGui::GetWindowPos().x + ImGui::GetWindowContentRegionMax().x;
+  if (ImGui::GetItemRectMax().x + spacing + next_width <= right_edge) ImGui::SameLine(0.0f, spacing);
+}
+
+bool elided_text(const std::string& text, ImU32 colour) {
+  const float avail = ImGui::GetContentRegionAvail().x;
+  if (ImGui::CalcTextSize(text.c_str()).x <= avail) {
+    ImGui::TextColored(to_vec4(colour), "%s", text.c_str());
+    return false;
+  }
+  static constexpr const char* kEllipsis = "\u2026";
+  const float ellipsis_width = ImGui::CalcTextSize(kEllipsis).x;
+  // The longest prefix that fits with the ellipsis, cut at a UTF-8 character's first byte.
+  std::size_t low = 0;
+  std::size_t high = text.size();
+  while (low < high) {
+    const std::size_t mid = (low + high + 1) / 2;
+    const float width = ImGui::CalcTextSize(text.data(), text.data() + mid).x + ellipsis_width;
+    if (width <= avail) low = mid;
+    else high = mid - 1;
+  }
+  while (low > 0 && (static_cast<unsigned char>(text[low]) & 0xC0) == 0x80) --low;
+  const std::string shown = text.substr(0, low) + kEllipsis;
+  ImGui::TextColored(to_vec4(colour), "%s", shown.c_str());
+  return true;
+}
+
 PlotResult draw_plot(const char* id, ImVec2 size, const PlotAxes& axes, std::span<const PlotSeries> series) {
   PlotResult result;
   const ImVec2 origin = ImGui::GetCursorScreenPos();

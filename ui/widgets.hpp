@@ -66,6 +66,14 @@ void badge(const char* text, ImU32 colour);
 // Text that keeps its place when the value changes width (numbers): right-aligned in a box.
 void right_aligned_text(float width, const char* text, ImU32 colour = 0);
 
+// For a row of status items: the next item goes on the same line, `spacing` after the last one,
+// when `next_width` still fits before the window's right edge, else on a new line.
+void same_line_if_fits(float next_width, float spacing);
+
+// Text cut with an ellipsis to the width left on the line, so it never runs past the window's
+// edge. Returns whether it was cut (the caller's tooltip then shows the whole text).
+bool elided_text(const std::string& text, ImU32 colour);
+
 // One line of a plot.
 struct PlotSeries {
   std::span<const double> x;

@@ -136,6 +136,47 @@ TEST_F(PhotometricPanelTest, ALampTheModeDoesNotModelIsFlagged) {
   EXPECT_GT(amber_pixels(with, 0.0f, status_bottom), amber_pixels(without, 0.0f, status_bottom) + 40);
 }
 
+// In a narrow panel the status items flow onto new lines instead of running off its edge: the
+// amber lamp flag is drawn whole (as many amber pixels as in a wide panel), and the long texts
+// are cut with an ellipsis inside the window.
+TEST_F(PhotometricPanelTest, StatusItemsWrapInANarrowPanel) {
+  Snapshot snapshot;
+  auto view = estimate_view();
+  view->lamp_not_modelled = true;
+  view->lamp_term = "lamp term: 876 odometry points, 92 tracked patches";
+  view->ambiguity = "gamma and scale from the known exposures (reported by the source), the irradiance scale by the "
+                    "smoothest continuation of log G above the observed grey range";
+  view->lamp_offset = "lamp offset: not determined along y: sigma 0.00824 > 0.00805 (the poses do not see the lamp's "
+                      "falloff change enough) (92 of 934 window points)";
+  snapshot.photometric = view;
+  const auto amber_above = [&](const cv::Mat& shot, float bottom) {
+    int n = 0;
+    for (int y = 0; y < static_cast<int>(bottom); ++y)
+      for (int x = 0; x < shot.cols; ++x) n += near(pixel(shot, x, y), colours::state_paused, 40);
+    return n;
+  };
+  PhotometricPanel wide;
+  const cv::Mat wide_shot = render(wide, snapshot);
+  const int amber_wide = amber_above(wide_shot, wide.response_plot_rect().min.y - 20.0f);
+
+  ui_.reset();  // one ImGui context at a time
+  ui_ = std::make_unique<OffscreenUi>(560, 420);
+  PhotometricPanel narrow;
+  const cv::Mat shot = render(narrow, snapshot);
+  const float plots_top = narrow.response_plot_rect().min.y;
+  EXPECT_GT(amber_wide, 40);
+  EXPECT_NEAR(amber_above(shot, plots_top - 20.0f), amber_wide, 0.1 * amber_wide) << "the flag drawn whole";
+  // Nothing written into the window's right padding: every status text ends inside.
+  const int padding = static_cast<int>(ImGui::GetStyle().WindowPadding.x);
+  int in_padding = 0;
+  for (int y = 0; y < static_cast<int>(plots_top) - 32; ++y)  // above the plots' captions
+    for (int x = shot.cols - padding + 1; x < shot.cols; ++x) {
+      const testing::Rgb c = pixel(shot, x, y);
+      in_padding += c.r + c.g + c.b > 300 ? 1 : 0;
+    }
+  EXPECT_EQ(in_padding, 0);
+}
+
 TEST_F(PhotometricPanelTest, LampBeamAndOffsetTakeTheirOwnRow) {
   Snapshot snapshot;
   auto view = estimate_view();

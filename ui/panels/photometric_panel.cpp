@@ -15,33 +15,47 @@
 namespace nirslam::ui {
 namespace {
 
+constexpr float kSwatchWidth = 20.0f;
+constexpr float kLegendSpacing = 12.0f;
+
+float legend_width(bool with_truth, bool with_unmeasured) {
+  const auto entry = [](const char* text) { return kSwatchWidth + 2.0f + ImGui::CalcTextSize(text).x; };
+  float width = entry("estimate");
+  if (with_truth) width += kLegendSpacing + entry("ground truth");
+  if (with_unmeasured) width += kLegendSpacing + entry("not measured");
+  return width;
+}
+
+// One item for the status row's layout (a group), legend_width() wide.
 void legend(bool with_truth, bool with_unmeasured) {
+  ImGui::BeginGroup();
   ImDrawList* draw = ImGui::GetWindowDrawList();
   const auto swatch = [&](ImU32 colour, const char* text) {
     const ImVec2 p = ImGui::GetCursorScreenPos();
     const float y = p.y + 0.5f * ImGui::GetTextLineHeight();
     draw->AddLine(ImVec2(p.x, y), ImVec2(p.x + 16.0f, y), colour, 2.5f);
-    ImGui::Dummy(ImVec2(20.0f, ImGui::GetTextLineHeight()));
+    ImGui::Dummy(ImVec2(kSwatchWidth, ImGui::GetTextLineHeight()));
     ImGui::SameLine(0.0f, 2.0f);
     ImGui::TextColored(to_vec4(colours::text_dim), "%s", text);
   };
   swatch(colours::estimate, "estimate");
   if (with_truth) {
-    ImGui::SameLine(0.0f, 12.0f);
+    ImGui::SameLine(0.0f, kLegendSpacing);
     swatch(colours::ground_truth, "ground truth");
   }
   if (with_unmeasured) {
-    ImGui::SameLine(0.0f, 12.0f);
+    ImGui::SameLine(0.0f, kLegendSpacing);
     const ImVec2 p = ImGui::GetCursorScreenPos();
     const float h = ImGui::GetTextLineHeight();
     draw->AddRectFilled(ImVec2(p.x, p.y + 0.15f * h), ImVec2(p.x + 16.0f, p.y + 0.85f * h), colours::unmeasured_band);
-    ImGui::Dummy(ImVec2(20.0f, h));
+    ImGui::Dummy(ImVec2(kSwatchWidth, h));
     ImGui::SameLine(0.0f, 2.0f);
     ImGui::TextColored(to_vec4(colours::text_dim), "not measured");
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("Outside the grey range and beyond the radius the back end's samples reach (1st-99th\n"
                         "percentile), the curves are the model's continuation, not data");
   }
+  ImGui::EndGroup();
 }
 
 // Shades the parts of a plot's x range outside [measured_lo, measured_hi]: there the curve is the
@@ -134,13 +148,17 @@ void PhotometricPanel::draw_status(const PhotometricView& view) {
                 view.iterations);
   else
     ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.status.empty() ? "no back-end estimate yet" : view.status.c_str());
-  // The legend and the lamp term before the long ambiguity text, so a narrow window clips that.
-  ImGui::SameLine(0.0f, 16.0f);
-  legend(view.true_response.has_value() || view.true_vignette.has_value(),
-         view.grey_high > view.grey_low || view.radius_high > 0.0);
+  // Items flow onto a new line where the window is too narrow; the long texts (the ambiguity, the
+  // lamp offset's reason) are cut with an ellipsis, whole in their tooltips.
+  constexpr float kGap = 16.0f;
+  const bool with_truth = view.true_response.has_value() || view.true_vignette.has_value();
+  const bool with_unmeasured = view.grey_high > view.grey_low || view.radius_high > 0.0;
+  same_line_if_fits(legend_width(with_truth, with_unmeasured), kGap);
+  legend(with_truth, with_unmeasured);
   if (view.lamp_not_modelled) {
-    ImGui::SameLine(0.0f, 16.0f);
-    ImGui::TextColored(to_vec4(colours::state_paused), "lamp on, not modelled");
+    const char* text = "lamp on, not modelled";
+    same_line_if_fits(ImGui::CalcTextSize(text).x, kGap);
+    ImGui::TextColored(to_vec4(colours::state_paused), "%s", text);
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("The frames report the co-located lamp on. Calibration alone assumes that a point's radiance\n"
                         "is constant, but under the lamp it changes with the point's distance, and the fit bends the\n"
@@ -148,26 +166,34 @@ void PhotometricPanel::draw_status(const PhotometricView& view) {
                         "the lamp's distance factor.");
   }
   if (!view.lamp_term.empty()) {
-    ImGui::SameLine(0.0f, 16.0f);
-    ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.lamp_term.c_str());
+    same_line_if_fits(ImGui::CalcTextSize(view.lamp_term.c_str()).x, kGap);
+    elided_text(view.lamp_term, colours::text_dim);
     if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("Under the co-located lamp a point's radiance changes with its distance: the calibration takes\n"
-                        "the distances from the odometry's points and divides out (d_ref/d)^2 (P/P_ref)");
+      ImGui::SetTooltip("%s\nUnder the co-located lamp a point's radiance changes with its distance: the calibration takes\n"
+                        "the distances from the odometry's points and divides out (d_ref/d)^2 (P/P_ref)",
+                        view.lamp_term.c_str());
   }
-  ImGui::SameLine(0.0f, 16.0f);
-  ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.ambiguity.empty() ? "" : view.ambiguity.c_str());
-  if (!view.ambiguity.empty() && ImGui::IsItemHovered())
-    ImGui::SetTooltip("The response is only known up to f^gamma and a scale: this is how the estimate fixes them");
-  // The beam first: short, so the offset's longer "why not" is what a narrow window clips.
-  if (!view.lamp_beam.empty()) {
-    ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.lamp_beam.c_str());
+  if (!view.ambiguity.empty()) {
+    // Beside the rest when a readable part of it fits there.
+    same_line_if_fits(std::min(ImGui::CalcTextSize(view.ambiguity.c_str()).x, 240.0f), kGap);
+    elided_text(view.ambiguity, colours::text_dim);
     if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("The halo factor divided by the lens vignetting (calibration.lens_vignette): the lamp's beam\n"
-                        "pattern, fitted by cos(alpha)^m");
-    if (!view.lamp_offset.empty()) ImGui::SameLine(0.0f, 16.0f);
+      ImGui::SetTooltip("%s\nThe response is only known up to f^gamma and a scale: this is how the estimate fixes them",
+                        view.ambiguity.c_str());
+  }
+  // The beam first: short, so the offset's longer "why not" is what a narrow window cuts.
+  bool lamp_line_started = false;
+  if (!view.lamp_beam.empty()) {
+    elided_text(view.lamp_beam, colours::text_dim);
+    lamp_line_started = true;
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("%s\nThe halo factor divided by the lens vignetting (calibration.lens_vignette): the lamp's beam\n"
+                        "pattern, fitted by cos(alpha)^m",
+                        view.lamp_beam.c_str());
   }
   if (!view.lamp_offset.empty()) {
-    ImGui::TextColored(to_vec4(colours::text_dim), "%s", view.lamp_offset.c_str());
+    if (lamp_line_started) same_line_if_fits(std::min(ImGui::CalcTextSize(view.lamp_offset.c_str()).x, 240.0f), kGap);
+    elided_text(view.lamp_offset, colours::text_dim);
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("Where the lamp sits relative to the camera centre (camera axes, the odometry's units), from the\n"
                         "brightness of the window's points across the recent keyframes:\n%s", view.lamp_offset.c_str());

@@ -232,7 +232,10 @@ void Application::apply(const UiPreferences& p) {
   for (const auto& [tab, name] : kTabNames)
     if (p.strip_tab == name) select_tab(tab);
   if (post_) {
-    if (const auto mode = parse_pipeline_mode(p.pipeline_mode)) post_(command::SetPipelineMode{*mode});
+    // Only a mode the operator picked overrides the config's.
+    controls_.chosen_pipeline_mode = p.chosen_pipeline_mode;
+    if (p.chosen_pipeline_mode == "auto") post_(command::SetPipelineMode{std::nullopt});
+    else if (const auto mode = parse_pipeline_mode(p.chosen_pipeline_mode)) post_(command::SetPipelineMode{*mode});
     post_(command::SetPacing{p.recorded_speed ? Pacing::RecordedSpeed : Pacing::AsFastAsPossible});
   }
 }
@@ -249,6 +252,7 @@ void Application::capture(UiPreferences& p) const {
   p.recent_sources = session_.recent_sources;
   p.recorded_speed = session_.recorded_speed();
   p.sessions_folder = recording_.sessions_folder();
+  p.chosen_pipeline_mode = controls_.chosen_pipeline_mode;
   for (const auto& [tab, name] : kTabNames)
     if (tab == current_tab_) p.strip_tab = name;
 }

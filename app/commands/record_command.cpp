@@ -35,8 +35,11 @@ int record_headless(const RecordOptions& options) {
   if (options.recorded_speed) worker_options.pacing = Pacing::RecordedSpeed;
   if (!options.mode.empty()) {
     const auto mode = parse_pipeline_mode(options.mode);
-    if (!mode) throw std::invalid_argument("--mode: expected quality, odometry or calibrated, got '" + options.mode + "'");
+    if (!mode)
+      throw std::invalid_argument(
+          "--mode: expected quality, odometry, calibrated, illuminated or odometry-illuminated, got '" + options.mode + "'");
     worker_options.pipeline.mode = *mode;
+    worker_options.automatic_pipeline_mode = false;
   }
   worker_options.recording.format = *parse_frame_file_format(options.format);
   if (options.png_compression >= 0) worker_options.recording.png_compression = options.png_compression;
@@ -96,7 +99,7 @@ void add_record_command(CLI::App& parent, CommandAction& action) {
   cmd->add_option("--frames", options->max_frames, "Stop after this many frames")->check(CLI::PositiveNumber);
   cmd->add_option("--notes", options->notes, "Operator notes, stored in session.json");
   cmd->add_option("--mode", options->mode, "Pipeline stages while recording: quality, odometry or calibrated "
-                                            "(default from the config)")
+                                            "(default from the config, pipeline.mode)")
       ->check(CLI::IsMember({"quality", "odometry", "calibrated"}));
   cmd->add_option("--format", options->format, "Frame files: png (lossless, compressed) or pgm (raw)")
       ->check(CLI::IsMember({"png", "pgm"}))

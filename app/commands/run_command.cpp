@@ -156,12 +156,16 @@ int run_headless(const RunOptions& options) {
 
   WorkerOptions worker_options = app_config().worker;
   if (options.recorded_speed) worker_options.pacing = Pacing::RecordedSpeed;
-  if (!options.mode.empty()) {
+  if (options.mode == "auto") {
+    worker_options.automatic_pipeline_mode = true;
+  } else if (!options.mode.empty()) {
     const auto mode = parse_pipeline_mode(options.mode);
     if (!mode)
       throw std::invalid_argument(
-          "--mode: expected quality, odometry, calibrated, illuminated or odometry-illuminated, got '" + options.mode + "'");
+          "--mode: expected auto, quality, odometry, calibrated, illuminated or odometry-illuminated, got '" +
+          options.mode + "'");
     worker_options.pipeline.mode = *mode;
+    worker_options.automatic_pipeline_mode = false;
   }
   if (options.online_calibration && !options.given_calibration.empty())
     throw std::invalid_argument("--online-calibration and --photometric-calibration: give one of the two");
@@ -176,7 +180,6 @@ int run_headless(const RunOptions& options) {
       throw InputError(options.given_calibration, "--photometric-calibration: not a folder (one holding pcalib.txt and vignette.png)");
     worker_options.pipeline.given_calibration_folder = options.given_calibration;
   }
-  const PipelineMode mode = worker_options.pipeline.mode;
 
   auto csv = std::make_shared<MetricsCsvWriter>(options.out_dir / "quality.csv");
   RunTotals totals;  // written by the worker thread, read here once it has settled
@@ -224,11 +227,15 @@ int run_headless(const RunOptions& options) {
   // Every observer and finish-handler call happened on the worker thread before the settled
   // snapshot was published, and loading that snapshot orders them before the reads below.
   totals.source_kind = last->source.kind;
+  // The automatic mode was chosen for the source on the worker thread: the snapshot names it.
+  PipelineOptions pipeline_used = worker_options.pipeline;
+  if (const auto resolved = parse_pipeline_mode(last->pipeline_mode)) pipeline_used.mode = *resolved;
+  const PipelineMode mode = pipeline_used.mode;
   if (!totals.ground_truth.empty()) {
     write_tum(options.out_dir / "groundtruth.txt", totals.ground_truth);
     totals.files.push_back("groundtruth.txt");
   }
-  write_summary(options.out_dir / "summary.json", options, worker_options.pipeline, *last, wall_s, totals);
+  write_summary(options.out_dir / "summary.json", options, pipeline_used, *last, wall_s, totals);
 
   if (!last->pipeline_error.empty()) {
     // The stages the mode asks for never ran: not a result to hand on.
@@ -273,9 +280,10 @@ void add_run_command(CLI::App& parent, CommandAction& action) {
   cmd->add_option("--mode", options->mode,
                   "Pipeline stages: quality (metrics only), odometry (plain direct odometry), calibrated "
                   "(online photometric calibration + odometry), illuminated (calibrated + the co-located lamp's "
-                  "distance and power factor), odometry-illuminated (odometry + the lamp's factor, no calibration); "
+                  "distance and power factor), odometry-illuminated (odometry + the lamp's factor, no calibration), "
+                  "auto (illuminated when the source reports its lamp's power, else calibrated); "
                   "default from the config (pipeline.mode)")
-      ->check(CLI::IsMember({"quality", "odometry", "calibrated", "illuminated", "odometry-illuminated"}));
+      ->check(CLI::IsMember({"auto", "quality", "odometry", "calibrated", "illuminated", "odometry-illuminated"}));
   cmd->add_flag("--realtime", options->recorded_speed,
                 "Follow the recorded timestamps instead of running flat out (config: worker.pacing)");
   cmd->add_option("--max-frames", options->max_frames, "Stop after this many frames")->check(CLI::PositiveNumber);

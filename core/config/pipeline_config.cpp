@@ -36,9 +36,10 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   PipelineOptions& pipeline = config.worker.pipeline;
   YamlMapReader stages(root["pipeline"], file, "pipeline");
   if (const auto mode = stages.read_text("mode")) {
+    config.worker.automatic_pipeline_mode = *mode == "auto";
     if (const auto parsed = parse_pipeline_mode(*mode)) pipeline.mode = *parsed;
-    else
-      stages.fail_at("mode", "expected 'quality', 'odometry', 'calibrated', 'illuminated' or 'odometry-illuminated', got '" +
+    else if (!config.worker.automatic_pipeline_mode)
+      stages.fail_at("mode", "expected 'auto', 'quality', 'odometry', 'calibrated', 'illuminated' or 'odometry-illuminated', got '" +
                                  *mode + "'");
   }
   stages.read<std::size_t>("exposure_history", pipeline.exposure_history, 2, 1'000'000);

@@ -91,7 +91,7 @@ LoadedPreferences load_preferences(const fs::path& file) {
   read_field(document, "sessions_folder", p.sessions_folder, file, w);
   read_field(document, "export_folder", p.export_folder, file, w);
   read_field(document, "strip_tab", p.strip_tab, file, w);
-  read_field(document, "pipeline_mode", p.pipeline_mode, file, w);
+  read_field(document, "chosen_pipeline_mode", p.chosen_pipeline_mode, file, w);
   read_field(document, "recorded_speed", p.recorded_speed, file, w);
   read_field(document, "feed_corrected", p.feed_corrected, file, w);
   read_field(document, "feed_clipping", p.feed_clipping, file, w);
@@ -124,7 +124,7 @@ void save_preferences(const fs::path& file, const UiPreferences& p) {
       {"sessions_folder", p.sessions_folder},
       {"export_folder", p.export_folder},
       {"strip_tab", p.strip_tab},
-      {"pipeline_mode", p.pipeline_mode},
+      {"chosen_pipeline_mode", p.chosen_pipeline_mode},
       {"recorded_speed", p.recorded_speed},
       {"feed_corrected", p.feed_corrected},
       {"feed_clipping", p.feed_clipping},

@@ -1,5 +1,6 @@
 #include "nirslam/session/session_source.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -25,6 +26,9 @@ SessionSource::SessionSource(const fs::path& folder) : folder_(folder) {
   info_.frame_count = journal_.size();
   info_.seekable = true;
   info_.nominal_fps = metadata_.nominal_fps;
+  info_.reports_lamp_power = std::any_of(journal_.begin(), journal_.end(), [](const JournalEntry& e) {
+    return e.illuminator_power_w && *e.illuminator_power_w > 0.0;
+  });
   if (info_.nominal_fps <= 0.0 && journal_.size() > 1) {
     const double span = journal_.back().timestamp_s - journal_.front().timestamp_s;
     if (span > 0.0) info_.nominal_fps = static_cast<double>(journal_.size() - 1) / span;

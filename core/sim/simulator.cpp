@@ -291,6 +291,12 @@ std::optional<SimulatedFrame> Simulator::next(bool with_depth) {
 
 // ---------------------------------------------------------------------------------------------
 
+namespace {
+bool lamp_in_schedule(const SimulatorOptions& o) {
+  return std::any_of(o.powers_w.begin(), o.powers_w.end(), [](double p) { return p > 0.0; });
+}
+}  // namespace
+
 SimulatedSource::SimulatedSource(const SimulatorOptions& options) : simulator_(options) {
   info_.kind = "sim";
   info_.scene_type = std::string(sim::to_string(simulator_.options().scene));
@@ -301,6 +307,7 @@ SimulatedSource::SimulatedSource(const SimulatorOptions& options) : simulator_(o
   if (o.frames > 0) info_.frame_count = static_cast<std::size_t>(o.frames);
   info_.live = false;
   info_.nominal_fps = o.capture_rule ? 1.0 / o.capture_rule->max_interval_s : o.fps;
+  info_.reports_lamp_power = lamp_in_schedule(o);
   IlluminatorCapabilities lamp;
   lamp.description = "the simulator's illuminator";
   lamp.reads_back = true;
@@ -312,7 +319,7 @@ std::optional<PhotometricTruth> SimulatedSource::photometric_truth() const {
   PhotometricTruth truth{o.response, o.vignette, std::nullopt};
   // The operator may change the power while it runs; the schedule says whether the lamp is part
   // of the scene at all.
-  if (std::any_of(o.powers_w.begin(), o.powers_w.end(), [](double p) { return p > 0.0; })) truth.halo = simulator_.halo_factor();
+  if (lamp_in_schedule(o)) truth.halo = simulator_.halo_factor();
   return truth;
 }
 

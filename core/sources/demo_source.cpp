@@ -88,6 +88,7 @@ public:
     info_.description = "built-in demo: textured wall under a co-located NIR illuminator";
     if (options.frame_count > 0) info_.frame_count = static_cast<std::size_t>(options.frame_count);
     info_.nominal_fps = options.fps;
+    info_.reports_lamp_power = options.illuminator_power_w > 0.0;
     wall_ = make_wall_texture(options.width * 2, options.height * 2, options.seed);
     halo_ = make_halo(options.width, options.height);
     noise_.create(options.height, options.width, CV_32FC1);

@@ -238,6 +238,8 @@ TumMonoVoReader::TumMonoVoReader(const fs::path& folder) : folder_(folder) {
   info_.live = false;
   info_.seekable = true;
   info_.nominal_fps = frame_rate_from_timestamps(timestamps);
+  info_.reports_lamp_power =
+      std::any_of(powers_w_.begin(), powers_w_.end(), [](const std::optional<double>& p) { return p && *p > 0.0; });
 }
 
 TumMonoVoReader::~TumMonoVoReader() = default;

@@ -19,6 +19,10 @@ double milliseconds_between(std::chrono::steady_clock::time_point from,
 
 }  // namespace
 
+PipelineMode automatic_pipeline_mode(const SourceInfo& source) {
+  return source.reports_lamp_power ? PipelineMode::Illuminated : PipelineMode::Calibrated;
+}
+
 Worker::Worker(WorkerOptions options)
     : options_(std::move(options)),
       meter_(options_.quality),
@@ -187,6 +191,7 @@ void Worker::apply(Command& command) {
             next->source = source_->info();
             next->state = state_ = WorkerState::Idle;
             next->message = "source ready: " + source_->info().description;
+            if (options_.automatic_pipeline_mode) options_.pipeline.mode = automatic_pipeline_mode(source_->info());
             restart_pipeline();
           } catch (const std::exception& e) {
             next->state = state_ = WorkerState::Failed;
@@ -232,12 +237,17 @@ void Worker::apply(Command& command) {
           options_.pacing = c.pacing;
           pacing_origin_.reset();
         } else if constexpr (std::is_same_v<C, command::SetPipelineMode>) {
-          options_.pipeline.mode = c.mode;
+          options_.automatic_pipeline_mode = !c.mode.has_value();
+          if (c.mode) options_.pipeline.mode = *c.mode;
+          else if (source_) options_.pipeline.mode = automatic_pipeline_mode(source_->info());
           if (source_) restart_pipeline();
           auto next = copy_of_latest();
           set_pipeline_views(*next);
           next->corrected_image = cv::Mat();
-          next->message = pipeline_error_.empty() ? fmt::format("pipeline mode: {}", to_string(c.mode)) : pipeline_error_;
+          next->message = !pipeline_error_.empty() ? pipeline_error_
+                          : c.mode                 ? fmt::format("pipeline mode: {}", to_string(*c.mode))
+                                                   : fmt::format("pipeline mode: automatic ({} for this source)",
+                                                                 to_string(options_.pipeline.mode));
           publish(std::move(next));
         }
       },
@@ -544,6 +554,7 @@ void Worker::restart_pipeline() {
 
 void Worker::set_pipeline_views(Snapshot& snapshot) {
   snapshot.pipeline_mode = std::string(to_string(options_.pipeline.mode));
+  snapshot.pipeline_mode_automatic = options_.automatic_pipeline_mode;
   snapshot.pipeline_error = pipeline_error_;
   if (pipeline_) {
     snapshot.photometric = pipeline_->photometric_view();

@@ -104,7 +104,7 @@ TEST(Completion, OptionsAfterOtherArgumentsAndValues) {
 
 TEST(Completion, ChoicesOfAnOption) {
   EXPECT_EQ(complete(program() + " run --mode "),
-            (std::set<std::string>{"quality", "odometry", "calibrated", "illuminated", "odometry-illuminated"}));
+            (std::set<std::string>{"auto", "quality", "odometry", "calibrated", "illuminated", "odometry-illuminated"}));
   EXPECT_EQ(complete(program() + " run --mode=c"), (std::set<std::string>{"calibrated"}));
   EXPECT_EQ(complete(program() + " eval a b --align s"), (std::set<std::string>{"sim3", "se3"}));
   EXPECT_EQ(complete(program() + " simulate --scene p"), (std::set<std::string>{"parking"}));

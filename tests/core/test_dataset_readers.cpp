@@ -283,14 +283,19 @@ TEST_F(TumMonoVo, IlluminatorPowerFromFramesCsv) {
   make_sequence(3, CV_8UC1, false);
   // Without frames.csv (a TUM dataset) the power is unknown.
   EXPECT_FALSE(TumMonoVoReader(root_).next()->illuminator_power_w.has_value());
+  EXPECT_FALSE(TumMonoVoReader(root_).info().reports_lamp_power);
   // The simulator's layout; a frame the file does not list keeps it unknown.
   write_text(root_ / "frames.csv",
              "index,file,timestamp_s,exposure_ms,gain,illuminator_power_w,mean_grey\n"
              "0,images/00000.png,1000.0,5,1,20.0,0.4\n2,images/00002.png,1000.1,7,1,0,0.3\n");
   TumMonoVoReader reader(root_);
+  EXPECT_TRUE(reader.info().reports_lamp_power);
   EXPECT_DOUBLE_EQ(*reader.next()->illuminator_power_w, 20.0);
   EXPECT_FALSE(reader.next()->illuminator_power_w.has_value());
   EXPECT_DOUBLE_EQ(*reader.next()->illuminator_power_w, 0.0);
+  // The lamp off in every frame: powers reported, none lights the frames.
+  write_text(root_ / "frames.csv", "file,illuminator_power_w\nimages/00000.png,0\nimages/00001.png,0\n");
+  EXPECT_FALSE(TumMonoVoReader(root_).info().reports_lamp_power);
   // A frames.csv of another kind (no power column) is not an error.
   write_text(root_ / "frames.csv", "id,note\n0,anything\n");
   EXPECT_FALSE(TumMonoVoReader(root_).next()->illuminator_power_w.has_value());

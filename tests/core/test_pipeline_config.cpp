@@ -38,6 +38,8 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_EQ(config.demo.width, 640);
   EXPECT_EQ(config.demo.frame_count, 900);
   EXPECT_DOUBLE_EQ(config.demo.illuminator_power_w, 50.0);
+  // The mode follows the source's lamp; calibrated where it reports none.
+  EXPECT_TRUE(config.worker.automatic_pipeline_mode);
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Calibrated);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 7);
   EXPECT_TRUE(config.worker.pipeline.calibration.background_thread);
@@ -156,6 +158,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  lamp_mode_exposure_follows_surface: true\n  keyframes_by_reported_exposure: false\n"
                 "  residual: observed\n  lamp_mode_residual: predicted\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
+  EXPECT_FALSE(config.worker.automatic_pipeline_mode) << "a named mode is not automatic";
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.affine_a_prior_known_exposure, 2.5);
@@ -272,7 +275,7 @@ TEST(PipelineConfig, ErrorsNameFileLineAndField) {
   EXPECT_NE(pipeline_config_error(section).find(":1: field 'mapping': unknown section"), std::string::npos);
 
   const fs::path mode = write_pipeline_yaml("mode", "pipeline:\n  mode: dso\n");
-  EXPECT_NE(pipeline_config_error(mode).find(":2: field 'pipeline.mode': expected 'quality', 'odometry', 'calibrated', "
+  EXPECT_NE(pipeline_config_error(mode).find(":2: field 'pipeline.mode': expected 'auto', 'quality', 'odometry', 'calibrated', "
                                 "'illuminated' or 'odometry-illuminated'"),
             std::string::npos)
       << pipeline_config_error(mode);

@@ -66,6 +66,7 @@ void expect_round_trip(int bit_depth, FrameFileFormat format) {
   EXPECT_FALSE(fs::exists(session / session_files::kReserve));
 
   SessionSource source(session);
+  EXPECT_TRUE(source.info().reports_lamp_power) << "its frames carry the lamp's power";
   for (int i = 0; i < n; ++i) {
     const std::optional<Frame> frame = source.next();
     ASSERT_TRUE(frame) << i;

@@ -34,7 +34,7 @@ TEST_F(UiPreferencesTest, RoundTripKeepsEveryChoice) {
   remember_source(p, "/data/tunnel_run");
   p.sessions_folder = "/media/usb/sessions";
   p.strip_tab = "photometric";
-  p.pipeline_mode = "odometry";
+  p.chosen_pipeline_mode = "odometry";
   p.recorded_speed = false;
   p.feed_corrected = true;
   p.view3d_follow = true;
@@ -52,7 +52,7 @@ TEST_F(UiPreferencesTest, RoundTripKeepsEveryChoice) {
   EXPECT_EQ(q.recent_sources[1], "sim:room@20W");
   EXPECT_EQ(q.sessions_folder, "/media/usb/sessions");
   EXPECT_EQ(q.strip_tab, "photometric");
-  EXPECT_EQ(q.pipeline_mode, "odometry");
+  EXPECT_EQ(q.chosen_pipeline_mode, "odometry");
   EXPECT_FALSE(q.recorded_speed);
   EXPECT_TRUE(q.feed_corrected);
   EXPECT_TRUE(q.view3d_follow);

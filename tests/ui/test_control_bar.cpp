@@ -136,5 +136,51 @@ TEST_F(ControlBarTest, NoJumpForALiveSourceOrWhileRecording) {
   EXPECT_EQ(colour_in(shot, bar_.progress_rect(), 0.0, 1.0, colours::text), 0) << "no knob while recording";
 }
 
+// The mode combo: "automatic" is its first entry; picking it asks the worker to choose per
+// source and is remembered as the operator's choice; picking it again while it runs posts nothing.
+TEST_F(ControlBarTest, AutomaticModeIsTheComboFirstEntry) {
+  ui_.reset();  // room below the bar for the open list
+  ui_ = std::make_unique<OffscreenUi>(1280, 400);
+  Snapshot snapshot = replaying(10, 300, true);
+  snapshot.pipeline_mode = "calibrated";
+  const auto pick_first_entry = [&](const char* shot_name) {
+    ImGuiIO& io = ImGui::GetIO();
+    draw(snapshot);
+    const ScreenRect combo = bar_.mode_rect();
+    io.MousePos = combo.centre();
+    io.MouseDown[0] = true;
+    draw(snapshot);
+    io.MouseDown[0] = false;
+    draw(snapshot);
+    // The list opens under the combo; its first row is "automatic".
+    io.MousePos = ImVec2(combo.min.x + 20.0f, combo.max.y + ImGui::GetStyle().WindowPadding.y + 0.5f * ImGui::GetTextLineHeight() + 2.0f);
+    testing::save_if_requested(draw(snapshot), shot_name);
+    io.MouseDown[0] = true;
+    draw(snapshot);
+    io.MouseDown[0] = false;
+    draw(snapshot);
+    io.MousePos = ImVec2(-1.0f, -1.0f);
+    draw(snapshot);
+  };
+  const auto automatic_posts = [&] {
+    int n = 0;
+    for (const Command& c : posted_)
+      if (const auto* m = std::get_if<command::SetPipelineMode>(&c)) n += m->mode ? 100 : 1;
+    return n;
+  };
+  EXPECT_TRUE(bar_.chosen_pipeline_mode.empty());
+  pick_first_entry("ControlBarModeList");
+  EXPECT_EQ(automatic_posts(), 1);
+  EXPECT_EQ(bar_.chosen_pipeline_mode, "auto");
+
+  posted_.clear();
+  snapshot.pipeline_mode = "illuminated";
+  snapshot.pipeline_mode_automatic = true;
+  const cv::Mat shot = draw(snapshot);
+  testing::save_if_requested(shot, "ControlBarAutomaticMode");
+  pick_first_entry("ControlBarModeListAutomatic");
+  EXPECT_EQ(automatic_posts(), 0) << "already automatic";
+}
+
 }  // namespace
 }  // namespace nirslam::ui

@@ -289,7 +289,7 @@ TEST_F(WindowExtrasTest, PreferencesRoundTripThroughTheApplication) {
   in.recent_sources = {"sim:room@20W"};
   in.last_source = "sim:room@20W";
   in.strip_tab = "session";
-  in.pipeline_mode = "odometry";
+  in.chosen_pipeline_mode = "odometry";
   in.recorded_speed = false;
   app.apply(in);
   Snapshot snapshot;
@@ -303,6 +303,7 @@ TEST_F(WindowExtrasTest, PreferencesRoundTripThroughTheApplication) {
   EXPECT_EQ(out.recent_sources, in.recent_sources);
   EXPECT_EQ(out.strip_tab, "session");
   EXPECT_FALSE(out.recorded_speed);
+  EXPECT_EQ(out.chosen_pipeline_mode, "odometry") << "the operator's mode is kept for next time";
   EXPECT_EQ(app.session().chosen_source(), "sim:room@20W");
   // The saved mode and pacing reach the worker.
   bool mode = false;
@@ -313,6 +314,28 @@ TEST_F(WindowExtrasTest, PreferencesRoundTripThroughTheApplication) {
   }
   EXPECT_TRUE(mode);
   EXPECT_TRUE(pacing);
+}
+
+// No mode picked yet: nothing overrides the config's mode (the automatic one by default); "auto"
+// picked before asks for it again.
+TEST_F(WindowExtrasTest, OnlyAModeTheOperatorPickedIsPosted) {
+  OffscreenUi offscreen(1280, 800);
+  std::vector<Command> posted;
+  Application app(gl::find_shader_dir(), [&posted](Command c) { posted.push_back(std::move(c)); });
+  app.apply(UiPreferences{});
+  for (const Command& c : posted) EXPECT_FALSE(std::holds_alternative<command::SetPipelineMode>(c));
+  UiPreferences out;
+  app.capture(out);
+  EXPECT_TRUE(out.chosen_pipeline_mode.empty());
+
+  posted.clear();
+  UiPreferences automatic;
+  automatic.chosen_pipeline_mode = "auto";
+  app.apply(automatic);
+  int automatic_posts = 0;
+  for (const Command& c : posted)
+    if (const auto* m = std::get_if<command::SetPipelineMode>(&c)) automatic_posts += m->mode ? 0 : 1;
+  EXPECT_EQ(automatic_posts, 1);
 }
 
 }  // namespace

@@ -431,5 +431,55 @@ TEST(WorkerOnSimulator, PipelineViewsTravelInSnapshotsAndTheFinishHandlerSeesThe
   EXPECT_TRUE(quality->corrected_image.empty());
 }
 
+// The automatic mode: the lamp's model for a source that reports its lamp, calibration alone for
+// one that does not; a named mode ends it until "automatic" is asked for again.
+TEST(Worker, AutomaticModeFollowsTheSourcesLamp) {
+  const auto sim_at = [](double power_w) {
+    return [power_w] {
+      SimulatorOptions sim;
+      sim.scene = sim::SceneKind::Room;
+      sim.width = 192;
+      sim.height = 144;
+      sim.supersampling = 1;
+      sim.frames = 5;
+      sim.powers_w = {power_w};
+      return make_simulated_source(sim);
+    };
+  };
+  WorkerOptions options;
+  options.automatic_pipeline_mode = true;
+  options.pipeline.mode = PipelineMode::Odometry;  // replaced by the automatic choice
+  Worker worker(options);
+  const auto source_ready = [](const std::string& mode) {
+    return [mode](const Snapshot& x) { return x.source.kind == "sim" && x.pipeline_mode == mode; };
+  };
+
+  worker.post(command::SetSource{sim_at(50.0)});
+  auto lit = worker.wait_for(source_ready("illuminated"), std::chrono::seconds(30));
+  EXPECT_EQ(lit->pipeline_mode, "illuminated");
+  EXPECT_TRUE(lit->pipeline_mode_automatic);
+  EXPECT_TRUE(lit->source.reports_lamp_power);
+
+  worker.post(command::SetSource{sim_at(0.0)});
+  auto dark = worker.wait_for(
+      [](const Snapshot& x) { return x.source.kind == "sim" && !x.source.reports_lamp_power && x.pipeline_mode == "calibrated"; },
+      std::chrono::seconds(30));
+  EXPECT_EQ(dark->pipeline_mode, "calibrated");
+  EXPECT_TRUE(dark->pipeline_mode_automatic);
+
+  worker.post(command::SetPipelineMode{PipelineMode::Odometry});
+  auto named = worker.wait_for([](const Snapshot& x) { return x.pipeline_mode == "odometry"; }, std::chrono::seconds(10));
+  EXPECT_EQ(named->pipeline_mode, "odometry");
+  EXPECT_FALSE(named->pipeline_mode_automatic);
+  worker.post(command::SetSource{sim_at(50.0)});
+  named = worker.wait_for([](const Snapshot& x) { return x.source.reports_lamp_power; }, std::chrono::seconds(30));
+  EXPECT_EQ(named->pipeline_mode, "odometry") << "a named mode stays when the source changes";
+
+  worker.post(command::SetPipelineMode{std::nullopt});
+  const auto again = worker.wait_for([](const Snapshot& x) { return x.pipeline_mode_automatic; }, std::chrono::seconds(10));
+  EXPECT_EQ(again->pipeline_mode, "illuminated");
+  EXPECT_NE(again->message.find("automatic"), std::string::npos) << again->message;
+}
+
 }  // namespace
 }  // namespace nirslam

@@ -101,11 +101,25 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
   PipelineMode current = PipelineMode::Calibrated;
   for (const PipelineMode mode : modes)
     if (snapshot.pipeline_mode == to_string(mode)) current = mode;
-  ImGui::SetNextItemWidth(ImGui::CalcTextSize("calibrated odometry").x + ImGui::GetFrameHeight() + 12.0f);
+  const bool automatic = snapshot.pipeline_mode_automatic;
+  // The automatic choice shows what it chose, so the operator sees which model runs.
+  const std::string preview = automatic ? fmt::format("{} (auto)", label(current)) : std::string(label(current));
+  ImGui::SetNextItemWidth(ImGui::CalcTextSize("calibrated odometry (auto)").x + ImGui::GetFrameHeight() + 12.0f);
   if (!can_post) ImGui::BeginDisabled();
-  if (ImGui::BeginCombo("##mode", label(current))) {
+  const bool mode_open = ImGui::BeginCombo("##mode", preview.c_str());
+  mode_rect_ = last_item_rect();
+  if (mode_open) {
+    if (ImGui::Selectable("automatic", automatic) && !automatic) {
+      chosen_pipeline_mode = "auto";
+      post(command::SetPipelineMode{std::nullopt});
+    }
+    if (ImGui::IsItemHovered()) ImGui::SetTooltip("calibrated + lamp when the source reports its lamp's power, else calibrated odometry");
+    ImGui::Separator();
     for (const PipelineMode mode : modes)
-      if (ImGui::Selectable(label(mode), mode == current) && mode != current) post(command::SetPipelineMode{mode});
+      if (ImGui::Selectable(label(mode), !automatic && mode == current) && (automatic || mode != current)) {
+        chosen_pipeline_mode = std::string(to_string(mode));
+        post(command::SetPipelineMode{mode});
+      }
     ImGui::EndCombo();
   }
   if (!can_post) ImGui::EndDisabled();
@@ -116,6 +130,7 @@ void ControlBar::draw(const Snapshot& snapshot, const CommandSink& post) {
                       "calibrated odometry: + online photometric calibration; the odometry sees G(I)/V\n"
                       "calibrated + lamp: + the co-located lamp's distance and power factor in the odometry\n"
                       "odometry + lamp: plain odometry with the lamp's factor, without calibration\n"
+                      "automatic: calibrated + lamp when the source reports its lamp's power, else calibrated odometry\n"
                       "Switching restarts the calibration and the odometry.");
 
   vertical_separator();

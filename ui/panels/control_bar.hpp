@@ -2,6 +2,7 @@
 
 #include <cstddef>
 #include <optional>
+#include <string>
 
 #include "nirslam/worker/snapshot.hpp"
 #include "ui/command_sink.hpp"
@@ -19,10 +20,17 @@ public:
 
   // Where the progress (seek) bar was drawn in the last frame; empty when it was not.
   const ScreenRect& progress_rect() const { return progress_rect_; }
+  // Where the pipeline mode's combo was drawn in the last frame.
+  const ScreenRect& mode_rect() const { return mode_rect_; }
+
+  // The mode the operator picked in the mode combo ("auto" or a PipelineMode name), remembered
+  // with the settings; empty until one is picked (the config's mode runs).
+  std::string chosen_pipeline_mode;
 
 private:
   std::optional<std::size_t> seek_target_;  // while the seek bar is dragged: the frame under the mouse
   ScreenRect progress_rect_;
+  ScreenRect mode_rect_;
 };
 
 // What the state badge shows: a label and its colour.

@@ -15,7 +15,10 @@ struct UiPreferences {
   std::string sessions_folder;              // where recordings go; empty: ~/nirslam-sessions
   std::string export_folder;                // where exports go; empty: next to the session
   std::string strip_tab = "illumination";   // "illumination", "photometric", "session", "record"
-  std::string pipeline_mode = "calibrated"; // PipelineMode name
+  // The mode the operator picked in the control bar (a PipelineMode name, or "auto"); empty: the
+  // config's pipeline.mode. Saved as "chosen_pipeline_mode": before, "pipeline_mode" was written
+  // with its default and never with a choice, so an old file's value says nothing.
+  std::string chosen_pipeline_mode;
   bool recorded_speed = true;               // datasets at their own pace (false: as fast as possible)
   bool feed_corrected = false;              // the feed shows G(I)/V instead of the raw frame
   bool feed_clipping = true;

@@ -32,6 +32,9 @@ struct SourceInfo {
   double nominal_fps = 0.0; // recorded or device rate, 0 when unknown
   std::string scene_type;   // "room", "outdoor", "parking", "tunnel" when the source knows it
   bool seekable = false;    // seek() jumps to any frame (datasets and recorded sessions)
+  // The frames carry the co-located lamp's power (Frame::illuminator_power_w), above zero in at
+  // least one of them (a live source: at opening): what the automatic pipeline mode asks.
+  bool reports_lamp_power = false;
 };
 
 // A stream of frames. Datasets, cameras, recorded sessions and the simulator all implement it.

@@ -73,6 +73,7 @@ struct Snapshot {
   std::shared_ptr<const IlluminationStatus> illumination;
   PipelineFrameInfo stages;    // of `frame`
   std::string pipeline_mode;   // "quality", "odometry", "calibrated", ... (PipelineMode)
+  bool pipeline_mode_automatic = false;  // pipeline_mode was chosen for the source (automatic_pipeline_mode)
   // Why the pipeline could not be built for this source (e.g. a given calibration file it
   // refused); the frames then get image quality only. Empty when it runs.
   std::string pipeline_error;

@@ -255,9 +255,11 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
       std::optional<double> distance;
       if (illumination->track_light_distance_m) distance = illumination->track_light_distance_m(tracked.tracks[i].id, pixel);
       if (!distance && illumination->light_distance_m) distance = illumination->light_distance_m(pixel);
-      log_illumination_[i] = illumination->light_cosine
-                                 ? nirslam::log_illumination(power, distance, illumination->light_cosine(pixel))
-                                 : nirslam::log_illumination(power, distance);
+      const std::int64_t id = tracked.tracks[i].id;
+      log_illumination_[i] =
+          illumination->track_light_cosine ? nirslam::log_illumination(power, distance, illumination->track_light_cosine(id, pixel))
+          : illumination->light_cosine     ? nirslam::log_illumination(power, distance, illumination->light_cosine(pixel))
+                                           : nirslam::log_illumination(power, distance);
     }
     log_illumination = &log_illumination_;
   }

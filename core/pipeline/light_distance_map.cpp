@@ -88,8 +88,10 @@ std::optional<double> LightDistanceMap::distance_at(const Eigen::Vector2d& pixel
                                                     const std::array<const Entry*, kMaxNeighbours>& near,
                                                     std::size_t n, Eigen::Vector3d* plane_normal) const {
   const std::optional<double> median = median_distance(near, n);
+  // The plane is fitted for its distance, or for its normal alone (the median stays the distance).
+  const bool fit = options_.fit_inverse_depth_plane || (plane_normal != nullptr && options_.normal_from_inverse_depth_plane);
   // Neither the gate nor the fit (the defaults): the median is the answer, no spread needed.
-  if (!median || (options_.max_log_spread <= 0.0 && !options_.fit_inverse_depth_plane)) return median;
+  if (!median || (options_.max_log_spread <= 0.0 && !fit)) return median;
   // Inliers: within the band (or 3 MADs) of the median in log distance.
   const double log_median = std::log(*median);
   std::array<float, kMaxNeighbours> deviations{};
@@ -97,7 +99,7 @@ std::optional<double> LightDistanceMap::distance_at(const Eigen::Vector2d& pixel
   const auto middle = deviations.begin() + static_cast<std::ptrdiff_t>(n / 2);
   std::nth_element(deviations.begin(), middle, deviations.begin() + static_cast<std::ptrdiff_t>(n));
   if (options_.max_log_spread > 0.0 && static_cast<double>(*middle) > options_.max_log_spread) return std::nullopt;
-  if (!options_.fit_inverse_depth_plane || static_cast<int>(n) < options_.min_fit_points) return median;
+  if (!fit || static_cast<int>(n) < options_.min_fit_points) return median;
   const double band = std::max(options_.inlier_log_band, 3.0 * 1.4826 * static_cast<double>(*middle));
   // Least squares for 1/z = a + b du + c dv, offsets in units of the radius (conditioning).
   Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
@@ -144,6 +146,7 @@ std::optional<double> LightDistanceMap::distance_at(const Eigen::Vector2d& pixel
       if (plane_n.allFinite() && plane_n.norm() > 0.0) *plane_normal = plane_n.normalized();
     }
   }
+  if (!options_.fit_inverse_depth_plane) return median;
   return (*ray / inverse_depth - light_offset_cam_).norm();
 }
 
@@ -175,6 +178,7 @@ std::optional<LightGeometry> LightDistanceMap::light_geometry(const Eigen::Vecto
       cosine = -cosine;
       normal = -normal;
     }
+    geometry.plane_normal_cam = normal;
     if (cosine >= options_.min_cosine && cosine <= 1.0) {
       geometry.cosine = cosine;
       geometry.normal_cam = normal;
@@ -202,6 +206,7 @@ std::optional<LightGeometry> LightDistanceMap::light_geometry(const Eigen::Vecto
     cosine = -cosine;
     normal = -normal;
   }
+  geometry.plane_normal_cam = normal.cast<double>();
   if (cosine >= static_cast<float>(options_.min_cosine)) {
     geometry.cosine = static_cast<double>(cosine);
     geometry.normal_cam = normal.cast<double>();

@@ -170,6 +170,8 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
       light_distances_ = std::make_unique<LightDistanceMap>(*camera_, options_.light_distances);
     if (light_distances_ && options_.lamp_distance_source != LampDistanceSource::Neighbours)
       track_distances_ = std::make_unique<TrackLightDistances>(*camera_, options_.track_light_distances);
+    if (light_distances_ && options_.lamp_cosine_to_calibration && options_.lamp_cosine_held_per_track)
+      track_cosines_ = std::make_unique<TrackLightCosines>(*camera_, options_.track_light_cosines);
     if (light_distances_ && options_.estimate_light_offset && !options_.light_offset_configured)
       light_offset_ = std::make_unique<KeyframeLightOffset>(*pinhole_, options_.light_offset_estimation);
   }
@@ -289,11 +291,25 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
         illumination.track_light_distance_m = [this](std::int64_t track_id, const Eigen::Vector2d&) {
           return track_distances_->light_distance(track_id, *predicted_T_world_cam_, options_.odometry.light_offset);
         };
-      if (options_.lamp_cosine_to_calibration)
+      if (track_cosines_) {
+        track_cosines_->begin_frame(*predicted_T_world_cam_, last_pose_->segment);
+        illumination.track_light_cosine = [this](std::int64_t track_id, const Eigen::Vector2d& pixel) -> std::optional<double> {
+          const auto geometry = light_distances_->light_geometry(pixel);
+          // The distance the calibration takes for this patch (the track's own first).
+          std::optional<double> distance;
+          if (track_distances_)
+            distance = track_distances_->light_distance(track_id, *predicted_T_world_cam_, options_.odometry.light_offset);
+          if (!distance && geometry && options_.lamp_distance_source != LampDistanceSource::Tracks) distance = geometry->distance;
+          if (!distance) return std::nullopt;
+          return track_cosines_->cosine(track_id, pixel, *distance, options_.odometry.light_offset,
+                                        geometry ? geometry->plane_normal_cam : std::nullopt);
+        };
+      } else if (options_.lamp_cosine_to_calibration) {
         illumination.light_cosine = [this](const Eigen::Vector2d& pixel) -> std::optional<double> {
           const auto geometry = light_distances_->light_geometry(pixel);
           return geometry ? geometry->cosine : std::nullopt;
         };
+      }
       corrected = calibration_->process(frame, illumination);
       result.light_distance_points = light_distances_->projected_points();
       light_distance_points_ = result.light_distance_points;
@@ -402,6 +418,7 @@ void SlamPipeline::remember_odometry(const OdometryResult& result) {
     window_points_.clear();
     if (light_distances_) light_distances_->clear();
     if (track_distances_) track_distances_->clear();
+    if (track_cosines_) track_cosines_->clear();
     if (!result.T_world_cam) return;
   }
   previous_pose_ = last_pose_;

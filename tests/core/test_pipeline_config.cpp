@@ -40,6 +40,9 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_DOUBLE_EQ(config.demo.illuminator_power_w, 50.0);
   // The mode follows the source's lamp; calibrated where it reports none.
   EXPECT_TRUE(config.worker.automatic_pipeline_mode);
+  EXPECT_FALSE(config.worker.pipeline.lamp_cosine_to_calibration);
+  EXPECT_TRUE(config.worker.pipeline.lamp_cosine_held_per_track);
+  EXPECT_TRUE(config.worker.pipeline.light_distances.normal_from_inverse_depth_plane);
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Calibrated);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 7);
   EXPECT_TRUE(config.worker.pipeline.calibration.background_thread);
@@ -149,7 +152,8 @@ TEST(PipelineConfig, LensVignetteBenchFileHoldsTheVignetteWithTheBeam) {
 TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
       "stages", "pipeline:\n  mode: odometry\n  corrected_frame_exponent: 1.0\n  raw_frame_exponent: 0.5\n  lamp_distance_max_log_spread: 0.1\n"
-                "  lamp_distance_plane_fit: false\n  lamp_cosine_to_calibration: true\nodometry:\n  points_per_frame: 1500\n"
+                "  lamp_distance_plane_fit: false\n  lamp_cosine_to_calibration: true\n  lamp_cosine_held_per_track: false\n"
+                "  lamp_cosine_from_inverse_depth_plane: false\nodometry:\n  points_per_frame: 1500\n"
                 "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n"
                 "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"
                 "  track_near_border: true\n  keyframes_follow_surface: false\n  vignette_rim_curvature_weight: 0.25\n"
@@ -181,6 +185,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_DOUBLE_EQ(config.worker.pipeline.light_distances.max_log_spread, 0.1);
   EXPECT_FALSE(config.worker.pipeline.light_distances.fit_inverse_depth_plane);
   EXPECT_TRUE(config.worker.pipeline.lamp_cosine_to_calibration);
+  EXPECT_FALSE(config.worker.pipeline.lamp_cosine_held_per_track);
+  EXPECT_FALSE(config.worker.pipeline.light_distances.normal_from_inverse_depth_plane);
 }
 
 TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {

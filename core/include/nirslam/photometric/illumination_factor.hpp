@@ -44,6 +44,8 @@ struct FrameIllumination {
   // the cosine out everywhere; std::nullopt at a pixel leaves that observation out (a factor with
   // the cosine at one observation and without at another would be wrong).
   std::function<std::optional<double>(const Eigen::Vector2d& pixel)> light_cosine;
+  // The same by track (the pipeline holds one normal per track); when set it replaces light_cosine.
+  std::function<std::optional<double>(std::int64_t track_id, const Eigen::Vector2d& pixel)> track_light_cosine;
   // The lamp's power; std::nullopt: Frame::illuminator_power_w, and 1 when that is missing too.
   std::optional<double> power_w;
 };

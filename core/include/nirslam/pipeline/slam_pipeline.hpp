@@ -30,6 +30,7 @@
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/pipeline/keyframe_light_offset.hpp"
 #include "nirslam/pipeline/light_distance_map.hpp"
+#include "nirslam/pipeline/track_light_cosines.hpp"
 #include "nirslam/pipeline/track_light_distances.hpp"
 #include "nirslam/sources/source.hpp"
 #include "nirslam/worker/photometric_view.hpp"
@@ -104,7 +105,15 @@ struct PipelineOptions {
   // Off: the calibration assumes constant radiance, as in Calibrated mode (for comparisons).
   bool lamp_distances_to_calibration = true;
   // ... and cos(theta) from planes fitted to the points (patches where no plane fits are left out).
+  // Off: it brings the tunnel's co-lit response from 37-38 to 5-12 grey levels and its halo factor
+  // from 0.12-0.14 to 0.016-0.056, but the other scenes' halo factor goes 0.005-0.035 -> 0.014-0.034
+  // and Table 2's lamp mode 0.0208 -> 0.0233 m (README "Illuminator correction", session 28).
   bool lamp_cosine_to_calibration = false;
+  // That cosine with one normal per track, held from its first fit (track_light_cosines.hpp);
+  // false: each frame's own fit (Table 2's lamp runs, co-lit response / halo factor: held 7.87 /
+  // 0.025, each frame's 13.0 / 0.034; README "Illuminator correction", session 28).
+  bool lamp_cosine_held_per_track = true;
+  TrackLightCosinesOptions track_light_cosines;
   // The calibration's settings in that case (the illuminated mode with lamp distances), in place
   // of calibration.keyframes_follow_deformation and backend.vignette_rim_curvature_weight, which
   // hold for the other modes: following the surface with a straight rim is better without the
@@ -123,7 +132,14 @@ struct PipelineOptions {
   // the path, parking 50 / 100 W worse), and the co-lit calibration with the true distances and
   // cosine lost its vignette (room 0.0037 -> 0.044; README "Illuminator correction", session 24).
   bool lamp_mode_track_near_border = false;
-  LightDistanceMapOptions light_distances;
+  // The cosine's normals (lamp_cosine_to_calibration) from the plane in inverse depth: the 3-D
+  // scatter's were far off on the tunnel's walls (light_distance_map.hpp). Only the cosine asks
+  // for a normal, so the distances are the same either way.
+  LightDistanceMapOptions light_distances = [] {
+    LightDistanceMapOptions o;
+    o.normal_from_inverse_depth_plane = true;
+    return o;
+  }();
   // Where a tracked patch's lamp distance comes from: the odometry's points near it (Neighbours,
   // light_distance_map.hpp), the patch's own track triangulated from the odometry's poses
   // (Tracks, track_light_distances.hpp: none until its rays span the parallax), or the track
@@ -225,6 +241,7 @@ public:
   // The lamp distances the calibration got for the last frame (Illuminated mode; else nullptr).
   const LightDistanceMap* light_distances() const { return light_distances_.get(); }
   const TrackLightDistances* track_light_distances() const { return track_distances_.get(); }
+  const TrackLightCosines* track_light_cosines() const { return track_cosines_.get(); }
   // The pose the last frame's lamp distances were computed for (constant velocity).
   const std::optional<SE3>& light_distance_pose() const { return predicted_T_world_cam_; }
   // The lamp offset estimated at the last keyframe (Illuminated mode, offset not configured).
@@ -264,6 +281,7 @@ private:
   };
   std::unique_ptr<LightDistanceMap> light_distances_;
   std::unique_ptr<TrackLightDistances> track_distances_;
+  std::unique_ptr<TrackLightCosines> track_cosines_;
   std::optional<SE3> predicted_T_world_cam_;  // of the frame about to be calibrated
   std::vector<Eigen::Vector3d> window_points_;  // the odometry's active points, world frame
   std::optional<TrackedPose> last_pose_;

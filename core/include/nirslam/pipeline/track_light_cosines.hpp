@@ -1,0 +1,76 @@
+#pragma once
+// cos(theta) of the lamp's light on a patch the photometric calibration tracks (issue 8), with
+// ONE surface normal per track, held in the world frame from the first frame that gives one.
+//
+// What the calibration uses is a track's ratio cos_i / cos_ref between frames. With the normal n
+// held, cos_i = n . (L_i - X) / d_i = h_i / d_i, h_i the lamp's height over the surface's tangent
+// plane, so the ratio is (h_i / h_ref) (d_ref / d_i), and an error e in n enters only through
+// h_i / h_ref = 1 - n . (L_i - L_ref) / h_ref: to first order e |L_i - L_ref| / h_ref, the lamp's
+// travel along the track over its height above the surface. For a wall or floor the rig moves
+// along (a tunnel, a garage floor ahead), the grazing case where the cosine matters most, that is
+// small. A normal fitted again in every frame (LightGeometry::cosine) instead puts each frame's
+// own fitting error into the ratio, divided by cos_ref (0.1-0.2 on the tunnel's walls): measured
+// worse (README "Illuminator correction", session 27).
+
+#include <cstdint>
+#include <optional>
+#include <unordered_map>
+
+#include <Eigen/Core>
+
+#include "nirslam/camera/camera_model.hpp"
+#include "nirslam/geometry/se3.hpp"
+
+namespace nirslam {
+
+struct TrackLightCosinesOptions {
+  // Below this cosine the light grazes the surface so closely that the ratio is not trusted.
+  double min_cosine = 0.05;
+  // A track not asked for this many frames is forgotten (the front end never reuses an id).
+  int forget_after_frames = 5;
+};
+
+class TrackLightCosines {
+public:
+  explicit TrackLightCosines(const CameraModel& camera, TrackLightCosinesOptions options = {});
+
+  // Starts a frame placed at T_world_cam by the odometry (its predicted pose). A new segment
+  // (a new world frame) starts over.
+  void begin_frame(const SE3& T_world_cam, int segment);
+  void clear();
+
+  // cos(theta) for the track seen at `pixel` (the frame's own, distorted, coordinates) with its
+  // surface point `light_distance` from the lamp at light_offset_cam. `plane_normal_cam` is this
+  // frame's fitted normal there (camera axes), taken only when the track has none yet.
+  // std::nullopt where the track has no normal, the pixel does not unproject, or the cosine is
+  // below min_cosine.
+  std::optional<double> cosine(std::int64_t track_id, const Eigen::Vector2d& pixel, double light_distance,
+                               const Eigen::Vector3d& light_offset_cam,
+                               const std::optional<Eigen::Vector3d>& plane_normal_cam);
+
+  // The cosine from a track's held normal in the current frame, without touching what is held
+  // (for probes); std::nullopt where it has none.
+  std::optional<double> held_cosine(std::int64_t track_id, const Eigen::Vector2d& pixel, double light_distance,
+                                    const Eigen::Vector3d& light_offset_cam) const;
+
+  std::size_t tracks() const { return normals_world_.size(); }
+
+private:
+  struct HeldNormal {
+    Eigen::Vector3d normal_world = Eigen::Vector3d::Zero();
+    std::int64_t last_frame = 0;
+  };
+
+  // cos(theta) from a world normal in the current frame, NaN where the pixel does not unproject.
+  double cosine_from(const Eigen::Vector3d& normal_world, const Eigen::Vector2d& pixel, double light_distance,
+                     const Eigen::Vector3d& light_offset_cam) const;
+
+  const CameraModel& camera_;
+  TrackLightCosinesOptions options_;
+  std::unordered_map<std::int64_t, HeldNormal> normals_world_;
+  Eigen::Matrix3d R_world_cam_ = Eigen::Matrix3d::Identity();
+  std::int64_t frame_ = 0;
+  std::optional<int> segment_;
+};
+
+}  // namespace nirslam

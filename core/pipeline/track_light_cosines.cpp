@@ -1,0 +1,63 @@
+#include "nirslam/pipeline/track_light_cosines.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+
+namespace nirslam {
+
+TrackLightCosines::TrackLightCosines(const CameraModel& camera, TrackLightCosinesOptions options)
+    : camera_(camera), options_(options) {}
+
+void TrackLightCosines::clear() {
+  normals_world_.clear();
+  segment_.reset();
+}
+
+void TrackLightCosines::begin_frame(const SE3& T_world_cam, int segment) {
+  if (segment_ != segment) {
+    normals_world_.clear();
+    segment_ = segment;
+  }
+  ++frame_;
+  R_world_cam_ = T_world_cam.rotation_matrix();
+  std::erase_if(normals_world_, [this](const auto& entry) { return frame_ - entry.second.last_frame > options_.forget_after_frames; });
+}
+
+double TrackLightCosines::cosine_from(const Eigen::Vector3d& normal_world, const Eigen::Vector2d& pixel, double light_distance,
+                                      const Eigen::Vector3d& light_offset_cam) const {
+  const auto ray = camera_.unproject(pixel);
+  if (!ray || !(light_distance > 0.0)) return std::nan("");
+  // The surface point on the ray at that distance from the lamp.
+  const Eigen::Vector3d direction = ray->normalized();
+  const double along = direction.dot(light_offset_cam);
+  const double t = along + std::sqrt(std::max(0.0, along * along - light_offset_cam.squaredNorm() + light_distance * light_distance));
+  const Eigen::Vector3d to_lamp = (light_offset_cam - t * direction) / light_distance;
+  // The held normal faces the lamp as it was first seen; the lamp stays on that side of the surface.
+  return (R_world_cam_.transpose() * normal_world).dot(to_lamp);
+}
+
+std::optional<double> TrackLightCosines::cosine(std::int64_t track_id, const Eigen::Vector2d& pixel, double light_distance,
+                                                const Eigen::Vector3d& light_offset_cam,
+                                                const std::optional<Eigen::Vector3d>& plane_normal_cam) {
+  auto held = normals_world_.find(track_id);
+  if (held == normals_world_.end()) {
+    if (!plane_normal_cam) return std::nullopt;
+    held = normals_world_.emplace(track_id, HeldNormal{R_world_cam_ * plane_normal_cam->normalized(), frame_}).first;
+  }
+  held->second.last_frame = frame_;
+  const double c = cosine_from(held->second.normal_world, pixel, light_distance, light_offset_cam);
+  if (!(c >= options_.min_cosine)) return std::nullopt;
+  return std::min(c, 1.0);
+}
+
+std::optional<double> TrackLightCosines::held_cosine(std::int64_t track_id, const Eigen::Vector2d& pixel, double light_distance,
+                                                     const Eigen::Vector3d& light_offset_cam) const {
+  const auto held = normals_world_.find(track_id);
+  if (held == normals_world_.end()) return std::nullopt;
+  const double c = cosine_from(held->second.normal_world, pixel, light_distance, light_offset_cam);
+  if (!std::isfinite(c)) return std::nullopt;
+  return c;
+}
+
+}  // namespace nirslam

@@ -84,6 +84,12 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   odometry.read_flag("apply_estimated_light_offset", pipeline.apply_estimated_light_offset);
   odometry.read<double>("beam_exponent", pipeline.odometry.beam_exponent, 0.0, 100.0);
   odometry.read_flag("surface_normals", pipeline.odometry.lamp_surface_normals);
+  if (const auto fit = odometry.read_text("surface_normal_fit")) {
+    if (const auto parsed = surface_normal_fit_from_string(*fit)) pipeline.odometry.lamp_surface_normal_fit = *parsed;
+    else
+      odometry.fail_at("surface_normal_fit",
+                       "expected 'spread' or 'inverse-depth-plane', got '" + *fit + "'");
+  }
   odometry.read_flag("lamp_factor_derivatives", pipeline.odometry.lamp_factor_derivatives);
   odometry.read_flag("beam_corrected_weights", pipeline.odometry.beam_corrected_weights);
   odometry.read_flag("lamp_in_traces", pipeline.odometry.lamp_in_traces);

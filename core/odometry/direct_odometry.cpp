@@ -211,7 +211,9 @@ struct DirectOdometry::Impl {
   // optimised (their dependence on the neighbours' depths is left out of the Jacobians).
   void update_surface_normals() {
     if (!options.illuminator_correction || !options.lamp_surface_normals) return;
-    for (auto& f : window->frames()) estimate_surface_normals(cameras[0], f.points);
+    SurfaceNormalOptions normal_options;
+    normal_options.fit = options.lamp_surface_normal_fit;
+    for (auto& f : window->frames()) estimate_surface_normals(cameras[0], f.points, normal_options);
   }
 
   // Points of the window in the newest keyframe, for the tracker.

@@ -154,7 +154,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
       "stages", "pipeline:\n  mode: odometry\n  corrected_frame_exponent: 1.0\n  raw_frame_exponent: 0.5\n  lamp_distance_max_log_spread: 0.1\n"
                 "  lamp_distance_plane_fit: false\n  lamp_cosine_to_calibration: true\n  lamp_cosine_held_per_track: false\n"
                 "  lamp_cosine_from_inverse_depth_plane: false\nodometry:\n  points_per_frame: 1500\n"
-                "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n"
+                "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n  surface_normal_fit: inverse-depth-plane\n"
                 "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"
                 "  track_near_border: true\n  keyframes_follow_surface: false\n  vignette_rim_curvature_weight: 0.25\n"
                 "  lamp_mode_keyframes_follow_surface: true\n  lamp_mode_vignette_rim_curvature_weight: 0.5\n"
@@ -165,6 +165,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_FALSE(config.worker.automatic_pipeline_mode) << "a named mode is not automatic";
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
+  EXPECT_EQ(config.worker.pipeline.odometry.lamp_surface_normal_fit, SurfaceNormalFit::InverseDepthPlane);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.affine_a_prior_known_exposure, 2.5);
   EXPECT_FALSE(config.worker.pipeline.calibration.background_thread);
   EXPECT_EQ(config.worker.pipeline.calibration.iterations_per_keyframe, 2);
@@ -285,6 +286,11 @@ TEST(PipelineConfig, ErrorsNameFileLineAndField) {
                                 "'illuminated' or 'odometry-illuminated'"),
             std::string::npos)
       << pipeline_config_error(mode);
+
+  const fs::path fit = write_pipeline_yaml("fit", "odometry:\n  surface_normal_fit: pca\n");
+  EXPECT_NE(pipeline_config_error(fit).find(":2: field 'odometry.surface_normal_fit': expected 'spread' or 'inverse-depth-plane', got 'pca'"),
+            std::string::npos)
+      << pipeline_config_error(fit);
 
   const fs::path flag = write_pipeline_yaml("flag", "calibration:\n  background_thread: maybe\n");
   EXPECT_NE(pipeline_config_error(flag).find(":2: field 'calibration.background_thread': expected true or false"), std::string::npos)

@@ -24,6 +24,7 @@
 
 #include "nirslam/camera/camera_model.hpp"
 #include "nirslam/geometry/se3.hpp"
+#include "nirslam/odometry/surface_normal_fit.hpp"
 
 namespace nirslam {
 
@@ -97,6 +98,8 @@ struct OdometryOptions {
   // cos(theta) of the lamp's light on the surface, from normals fitted to neighbouring points'
   // depths (odometry/surface_normals.hpp), where a plane fits.
   bool lamp_surface_normals = true;
+  // How those normals are fitted (surface_normals.hpp).
+  SurfaceNormalFit lamp_surface_normal_fit = SurfaceNormalFit::Spread;
   // g's derivatives in the Jacobians (false: g evaluated at the current estimates only).
   bool lamp_factor_derivatives = true;
   // With a beam: residuals and gradients divided by the target's B(alpha_t)^gamma before

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "nirslam/odometry/image_pyramid.hpp"
+#include "nirslam/odometry/surface_normal_fit.hpp"
 #include "nirslam/odometry/window_optimizer.hpp"
 
 namespace nirslam::odometry {
@@ -20,6 +21,9 @@ struct SurfaceNormalOptions {
   double max_relative_depth_gap = 0.15;  // |z_j - z_i| / z_i above: another surface
   double max_flatness = 0.08;         // smallest / middle eigenvalue of the spread; above: not a plane
   double min_spread_ratio = 0.15;     // middle / largest eigenvalue; below: the points lie along a line
+  SurfaceNormalFit fit = SurfaceNormalFit::Spread;
+  // The inverse-depth plane's fit must hold within this (rms of rho's residuals over the mean rho).
+  double max_relative_residual = 0.1;
 };
 
 // Sets (or clears) `normal` of every point hosted by one keyframe: unit, in the host frame,

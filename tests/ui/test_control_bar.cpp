@@ -144,23 +144,16 @@ TEST_F(ControlBarTest, AutomaticModeIsTheComboFirstEntry) {
   Snapshot snapshot = replaying(10, 300, true);
   snapshot.pipeline_mode = "calibrated";
   const auto pick_first_entry = [&](const char* shot_name) {
-    ImGuiIO& io = ImGui::GetIO();
-    draw(snapshot);
+    const auto frame = [&] { draw(snapshot); };
+    frame();
     const ScreenRect combo = bar_.mode_rect();
-    io.MousePos = combo.centre();
-    io.MouseDown[0] = true;
-    draw(snapshot);
-    io.MouseDown[0] = false;
-    draw(snapshot);
+    testing::click_at(combo.centre(), frame);
     // The list opens under the combo; its first row is "automatic".
-    io.MousePos = ImVec2(combo.min.x + 20.0f, combo.max.y + ImGui::GetStyle().WindowPadding.y + 0.5f * ImGui::GetTextLineHeight() + 2.0f);
+    const ImVec2 first_row(combo.min.x + 20.0f,
+                           combo.max.y + ImGui::GetStyle().WindowPadding.y + 0.5f * ImGui::GetTextLineHeight() + 2.0f);
+    ImGui::GetIO().MousePos = first_row;
     testing::save_if_requested(draw(snapshot), shot_name);
-    io.MouseDown[0] = true;
-    draw(snapshot);
-    io.MouseDown[0] = false;
-    draw(snapshot);
-    io.MousePos = ImVec2(-1.0f, -1.0f);
-    draw(snapshot);
+    testing::click_at(first_row, frame);
   };
   const auto automatic_posts = [&] {
     int n = 0;

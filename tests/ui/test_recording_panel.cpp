@@ -76,15 +76,7 @@ protected:
     ui_->frame([&] { full_window([&] { panel_->draw(snapshot, sink_, actions_); }); });
   }
   void click(ImVec2 at, const Snapshot& snapshot) {
-    ImGuiIO& io = ImGui::GetIO();
-    io.MousePos = at;
-    draw(snapshot);
-    io.MouseDown[0] = true;
-    draw(snapshot);
-    io.MouseDown[0] = false;
-    draw(snapshot);
-    io.MousePos = ImVec2(-1.0f, -1.0f);
-    draw(snapshot);
+    testing::click_at(at, [&] { draw(snapshot); });
   }
   std::unique_ptr<OffscreenUi> ui_;
   std::unique_ptr<RecordingPanel> panel_;

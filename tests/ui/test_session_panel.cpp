@@ -41,15 +41,7 @@ protected:
   }
   // A full click (move, press, release) at the centre of `rect`.
   void click(const ScreenRect& rect, const Snapshot& snapshot) {
-    ImGuiIO& io = ImGui::GetIO();
-    io.MousePos = rect.centre();
-    draw(snapshot);
-    io.MouseDown[0] = true;
-    draw(snapshot);
-    io.MouseDown[0] = false;
-    draw(snapshot);
-    io.MousePos = ImVec2(-1.0f, -1.0f);
-    draw(snapshot);
+    testing::click_at(rect.centre(), [&] { draw(snapshot); });
   }
   cv::Mat shot(const char* name) {
     cv::Mat rgba = ui_->read_rgba();

@@ -59,6 +59,20 @@ struct Rgb {
   int b = 0;
 };
 
+// A full left click at `at`: one UI frame (`draw`) each for the move, the press and the release,
+// then the mouse leaves (one more frame), so hover effects do not linger into the next shot.
+inline void click_at(ImVec2 at, const std::function<void()>& draw) {
+  ImGuiIO& io = ImGui::GetIO();
+  io.MousePos = at;
+  draw();
+  io.MouseDown[0] = true;
+  draw();
+  io.MouseDown[0] = false;
+  draw();
+  io.MousePos = ImVec2(-1.0f, -1.0f);
+  draw();
+}
+
 inline std::ostream& operator<<(std::ostream& out, const Rgb& c) {
   return out << "rgb(" << c.r << ", " << c.g << ", " << c.b << ")";
 }

@@ -39,7 +39,7 @@ int record_headless(const RecordOptions& options) {
       throw std::invalid_argument(
           "--mode: expected quality, odometry, calibrated, illuminated or odometry-illuminated, got '" + options.mode + "'");
     worker_options.pipeline.mode = *mode;
-    worker_options.automatic_pipeline_mode = false;
+    worker_options.pipeline_mode_automatic = false;
   }
   worker_options.recording.format = *parse_frame_file_format(options.format);
   if (options.png_compression >= 0) worker_options.recording.png_compression = options.png_compression;

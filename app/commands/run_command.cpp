@@ -157,7 +157,7 @@ int run_headless(const RunOptions& options) {
   WorkerOptions worker_options = app_config().worker;
   if (options.recorded_speed) worker_options.pacing = Pacing::RecordedSpeed;
   if (options.mode == "auto") {
-    worker_options.automatic_pipeline_mode = true;
+    worker_options.pipeline_mode_automatic = true;
   } else if (!options.mode.empty()) {
     const auto mode = parse_pipeline_mode(options.mode);
     if (!mode)
@@ -165,7 +165,7 @@ int run_headless(const RunOptions& options) {
           "--mode: expected auto, quality, odometry, calibrated, illuminated or odometry-illuminated, got '" +
           options.mode + "'");
     worker_options.pipeline.mode = *mode;
-    worker_options.automatic_pipeline_mode = false;
+    worker_options.pipeline_mode_automatic = false;
   }
   if (options.online_calibration && !options.given_calibration.empty())
     throw std::invalid_argument("--online-calibration and --photometric-calibration: give one of the two");

@@ -36,9 +36,9 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   PipelineOptions& pipeline = config.worker.pipeline;
   YamlMapReader stages(root["pipeline"], file, "pipeline");
   if (const auto mode = stages.read_text("mode")) {
-    config.worker.automatic_pipeline_mode = *mode == "auto";
+    config.worker.pipeline_mode_automatic = *mode == "auto";
     if (const auto parsed = parse_pipeline_mode(*mode)) pipeline.mode = *parsed;
-    else if (!config.worker.automatic_pipeline_mode)
+    else if (!config.worker.pipeline_mode_automatic)
       stages.fail_at("mode", "expected 'auto', 'quality', 'odometry', 'calibrated', 'illuminated' or 'odometry-illuminated', got '" +
                                  *mode + "'");
   }

@@ -252,10 +252,10 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
     log_illumination_.resize(tracked.tracks.size());
     for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
       const Eigen::Vector2d& pixel = tracked.tracks[i].position;
-      std::optional<double> distance;
-      if (illumination->track_light_distance_m) distance = illumination->track_light_distance_m(tracked.tracks[i].id, pixel);
-      if (!distance && illumination->light_distance_m) distance = illumination->light_distance_m(pixel);
       const std::int64_t id = tracked.tracks[i].id;
+      std::optional<double> distance;
+      if (illumination->track_light_distance_m) distance = illumination->track_light_distance_m(id, pixel);
+      if (!distance && illumination->light_distance_m) distance = illumination->light_distance_m(pixel);
       log_illumination_[i] =
           illumination->track_light_cosine ? nirslam::log_illumination(power, distance, illumination->track_light_cosine(id, pixel))
           : illumination->light_cosine     ? nirslam::log_illumination(power, distance, illumination->light_cosine(pixel))

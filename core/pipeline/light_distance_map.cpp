@@ -168,10 +168,8 @@ std::optional<LightGeometry> LightDistanceMap::light_geometry(const Eigen::Vecto
     const auto ray = camera_.unproject(pixel);
     if (!ray) return geometry;
     // The surface point on the ray at that distance from the lamp, and the light's incidence.
-    const Eigen::Vector3d direction = ray->normalized();
-    const double along = direction.dot(light_offset_cam_);
-    const double t = along + std::sqrt(std::max(0.0, along * along - light_offset_cam_.squaredNorm() + *distance * *distance));
-    const Eigen::Vector3d to_lamp = (light_offset_cam_ - t * direction).normalized();
+    const Eigen::Vector3d to_lamp =
+        (light_offset_cam_ - point_at_light_distance(ray->normalized(), light_offset_cam_, *distance)).normalized();
     double cosine = fitted_normal.dot(to_lamp);
     Eigen::Vector3d normal = fitted_normal;
     if (cosine < 0.0) {

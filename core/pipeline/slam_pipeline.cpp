@@ -294,12 +294,15 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
       if (track_cosines_) {
         track_cosines_->begin_frame(*predicted_T_world_cam_, last_pose_->segment);
         illumination.track_light_cosine = [this](std::int64_t track_id, const Eigen::Vector2d& pixel) -> std::optional<double> {
-          const auto geometry = light_distances_->light_geometry(pixel);
+          // The plane fit only for a track without a held normal.
+          std::optional<LightGeometry> geometry;
+          if (!track_cosines_->holds_normal(track_id)) geometry = light_distances_->light_geometry(pixel);
           // The distance the calibration takes for this patch (the track's own first).
           std::optional<double> distance;
           if (track_distances_)
             distance = track_distances_->light_distance(track_id, *predicted_T_world_cam_, options_.odometry.light_offset);
-          if (!distance && geometry && options_.lamp_distance_source != LampDistanceSource::Tracks) distance = geometry->distance;
+          if (!distance && options_.lamp_distance_source != LampDistanceSource::Tracks)
+            distance = geometry ? std::optional<double>(geometry->distance) : light_distances_->light_distance(pixel);
           if (!distance) return std::nullopt;
           return track_cosines_->cosine(track_id, pixel, *distance, options_.odometry.light_offset,
                                         geometry ? geometry->plane_normal_cam : std::nullopt);

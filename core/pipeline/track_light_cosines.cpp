@@ -1,5 +1,7 @@
 #include "nirslam/pipeline/track_light_cosines.hpp"
 
+#include "nirslam/pipeline/light_distance_map.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <iterator>
@@ -28,11 +30,8 @@ double TrackLightCosines::cosine_from(const Eigen::Vector3d& normal_world, const
                                       const Eigen::Vector3d& light_offset_cam) const {
   const auto ray = camera_.unproject(pixel);
   if (!ray || !(light_distance > 0.0)) return std::nan("");
-  // The surface point on the ray at that distance from the lamp.
-  const Eigen::Vector3d direction = ray->normalized();
-  const double along = direction.dot(light_offset_cam);
-  const double t = along + std::sqrt(std::max(0.0, along * along - light_offset_cam.squaredNorm() + light_distance * light_distance));
-  const Eigen::Vector3d to_lamp = (light_offset_cam - t * direction) / light_distance;
+  const Eigen::Vector3d to_lamp =
+      (light_offset_cam - point_at_light_distance(ray->normalized(), light_offset_cam, light_distance)) / light_distance;
   // The held normal faces the lamp as it was first seen; the lamp stays on that side of the surface.
   return (R_world_cam_.transpose() * normal_world).dot(to_lamp);
 }

@@ -191,7 +191,7 @@ void Worker::apply(Command& command) {
             next->source = source_->info();
             next->state = state_ = WorkerState::Idle;
             next->message = "source ready: " + source_->info().description;
-            if (options_.automatic_pipeline_mode) options_.pipeline.mode = automatic_pipeline_mode(source_->info());
+            if (options_.pipeline_mode_automatic) options_.pipeline.mode = automatic_pipeline_mode(source_->info());
             restart_pipeline();
           } catch (const std::exception& e) {
             next->state = state_ = WorkerState::Failed;
@@ -237,7 +237,7 @@ void Worker::apply(Command& command) {
           options_.pacing = c.pacing;
           pacing_origin_.reset();
         } else if constexpr (std::is_same_v<C, command::SetPipelineMode>) {
-          options_.automatic_pipeline_mode = !c.mode.has_value();
+          options_.pipeline_mode_automatic = !c.mode.has_value();
           if (c.mode) options_.pipeline.mode = *c.mode;
           else if (source_) options_.pipeline.mode = automatic_pipeline_mode(source_->info());
           if (source_) restart_pipeline();
@@ -554,7 +554,7 @@ void Worker::restart_pipeline() {
 
 void Worker::set_pipeline_views(Snapshot& snapshot) {
   snapshot.pipeline_mode = std::string(to_string(options_.pipeline.mode));
-  snapshot.pipeline_mode_automatic = options_.automatic_pipeline_mode;
+  snapshot.pipeline_mode_automatic = options_.pipeline_mode_automatic;
   snapshot.pipeline_error = pipeline_error_;
   if (pipeline_) {
     snapshot.photometric = pipeline_->photometric_view();

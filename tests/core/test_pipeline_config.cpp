@@ -39,7 +39,7 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_EQ(config.demo.frame_count, 900);
   EXPECT_DOUBLE_EQ(config.demo.illuminator_power_w, 50.0);
   // The mode follows the source's lamp; calibrated where it reports none.
-  EXPECT_TRUE(config.worker.automatic_pipeline_mode);
+  EXPECT_TRUE(config.worker.pipeline_mode_automatic);
   EXPECT_FALSE(config.worker.pipeline.lamp_cosine_to_calibration);
   EXPECT_TRUE(config.worker.pipeline.lamp_cosine_held_per_track);
   EXPECT_TRUE(config.worker.pipeline.light_distances.normal_from_inverse_depth_plane);
@@ -162,7 +162,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  lamp_mode_exposure_follows_surface: true\n  keyframes_by_reported_exposure: false\n"
                 "  residual: observed\n  lamp_mode_residual: predicted\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
-  EXPECT_FALSE(config.worker.automatic_pipeline_mode) << "a named mode is not automatic";
+  EXPECT_FALSE(config.worker.pipeline_mode_automatic) << "a named mode is not automatic";
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
   EXPECT_EQ(config.worker.pipeline.odometry.lamp_surface_normal_fit, SurfaceNormalFit::InverseDepthPlane);

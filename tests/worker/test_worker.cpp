@@ -447,7 +447,7 @@ TEST(Worker, AutomaticModeFollowsTheSourcesLamp) {
     };
   };
   WorkerOptions options;
-  options.automatic_pipeline_mode = true;
+  options.pipeline_mode_automatic = true;
   options.pipeline.mode = PipelineMode::Odometry;  // replaced by the automatic choice
   Worker worker(options);
   const auto source_ready = [](const std::string& mode) {

@@ -9,7 +9,9 @@
 // calibration's ratio (d_ref / d)^2 when the light sits at the camera centre, and nearly so for a
 // lamp a few centimetres beside the lens.
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <optional>
 #include <span>
@@ -57,6 +59,15 @@ struct LightDistanceMapOptions {
   // 0.68 times (README "Illuminator correction", session 28).
   bool normal_from_inverse_depth_plane = false;
 };
+
+// The surface point on a camera ray (unit direction) at `light_distance` from the lamp at
+// `light_offset_cam` (camera axes): the ray's far intersection with that sphere.
+inline Eigen::Vector3d point_at_light_distance(const Eigen::Vector3d& direction, const Eigen::Vector3d& light_offset_cam,
+                                               double light_distance) {
+  const double along = direction.dot(light_offset_cam);
+  return (along + std::sqrt(std::max(0.0, along * along - light_offset_cam.squaredNorm() + light_distance * light_distance))) *
+         direction;
+}
 
 // What a pixel's neighbours say of the lamp's light on the surface there.
 struct LightGeometry {

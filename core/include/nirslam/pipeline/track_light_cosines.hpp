@@ -53,6 +53,9 @@ public:
   std::optional<double> held_cosine(std::int64_t track_id, const Eigen::Vector2d& pixel, double light_distance,
                                     const Eigen::Vector3d& light_offset_cam) const;
 
+  // Whether the track has a normal held (cosine() then needs no fitted one).
+  bool holds_normal(std::int64_t track_id) const { return normals_world_.contains(track_id); }
+
   std::size_t tracks() const { return normals_world_.size(); }
 
 private:

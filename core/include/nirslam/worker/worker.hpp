@@ -46,7 +46,7 @@ struct WorkerOptions {
   PipelineOptions pipeline{};        // which stages run (mode) and their settings
   // pipeline.mode chosen per source instead (config `pipeline.mode: auto`):
   // automatic_pipeline_mode(), until a SetPipelineMode names a mode.
-  bool automatic_pipeline_mode = false;
+  bool pipeline_mode_automatic = false;
   RecorderOptions recording{};       // file format, PNG level, queue, free-space limits of recordings
 };
 

@@ -102,6 +102,20 @@ FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& 
       return *d * factor;
     };
   }
+  // Diagnosis: no distance for a patch within this many pixels of a depth edge (depths differing
+  // by more than 5 %), where the rounded pixel's depth may be another surface's.
+  if (const char* edge = std::getenv("NIRSLAM_PHOTOMETRIC_SKIP_DEPTH_EDGES")) {
+    const int reach = std::atoi(edge);
+    illumination.light_distance_m = [inner = illumination.light_distance_m, &f, reach](const Eigen::Vector2d& pixel) -> std::optional<double> {
+      const int x = static_cast<int>(std::lround(pixel.x())), y = static_cast<int>(std::lround(pixel.y()));
+      if (x < reach || y < reach || x + reach >= f.depth.cols || y + reach >= f.depth.rows) return std::nullopt;
+      const float centre = f.depth.at<float>(y, x);
+      for (int dy = -reach; dy <= reach; ++dy)
+        for (int dx = -reach; dx <= reach; ++dx)
+          if (std::abs(f.depth.at<float>(y + dy, x + dx) - centre) > 0.05f * centre) return std::nullopt;
+      return inner(pixel);
+    };
+  }
   if (cosine)
     illumination.light_cosine = [&sim, &f](const Eigen::Vector2d& pixel) -> std::optional<double> {
       const auto ray = sim.camera()->unproject(pixel);

@@ -1,8 +1,10 @@
 // The lamp's beam separated from the halo factor with a known lens vignetting (issue 8).
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
 
 #include "nirslam/photometric/beam_from_halo.hpp"
 #include "nirslam/photometric/beam_halo.hpp"
@@ -75,6 +77,42 @@ TEST(BeamFromHalo, HaloOfALensVignetteUnderABeam) {
   for (int i = 0; i <= 10; ++i)
     EXPECT_NEAR(fitted.vignette(i / 10.0), sim.halo_factor()(i / 10.0), i < 10 ? 0.01 : 0.02) << "r " << i / 10.0;
   EXPECT_THROW(halo_with_beam(VignetteModel{}.render(320, 240), camera, m), std::invalid_argument);
+}
+
+// The floor under the lamp-lit vignette error: the true halo factor V B is not a sextic in r, so
+// the polynomial the back end estimates (and the ground truth it is compared with,
+// Simulator::halo_factor()) differs from it by this much, measured the way
+// compare_with_ground_truth does (both scaled to their maximum, every 4th pixel). Measured: mean
+// 0.0048, max 0.018 at the default 30-degree beam (issue 6's vignette target is 0.005); 0.0010 /
+// 0.004 at 45 degrees.
+TEST(BeamFromHalo, TheRadialPolynomialHoldsTheHaloFactorToAFloor) {
+  for (const double half_angle : {30.0, 45.0}) {
+    SimulatorOptions o;
+    o.beam_half_angle_deg = half_angle;
+    const Simulator sim(o);
+    const cv::Mat exact = halo_with_beam(o.vignette.render(o.width, o.height), *sim.camera(),
+                                         sim.lighting(50.0).illuminator.beam_exponent());
+    const cv::Mat fitted = sim.halo_factor().render(o.width, o.height);
+    double exact_max = 0.0, fitted_max = 0.0;
+    cv::minMaxLoc(exact, nullptr, &exact_max);
+    cv::minMaxLoc(fitted, nullptr, &fitted_max);
+    double mean = 0.0, max = 0.0;
+    int count = 0;
+    for (int y = 0; y < o.height; y += 4)
+      for (int x = 0; x < o.width; x += 4, ++count) {
+        const double d = std::abs(fitted.at<float>(y, x) / fitted_max - exact.at<float>(y, x) / exact_max);
+        mean += d;
+        max = std::max(max, d);
+      }
+    mean /= count;
+    std::printf("beam half angle %.0f deg: the sextic against V B, mean %.4f, max %.4f\n", half_angle, mean, max);
+    if (half_angle < 40.0) {
+      EXPECT_GT(mean, 0.003);
+      EXPECT_LT(mean, 0.007);
+    } else {
+      EXPECT_LT(mean, 0.002);
+    }
+  }
 }
 
 TEST(BeamHalo, IsTheSimulatorsHaloFactorWithItsDerivative) {

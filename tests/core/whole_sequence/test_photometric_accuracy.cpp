@@ -102,17 +102,20 @@ FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& 
       return *d * factor;
     };
   }
-  // Diagnosis: no distance for a patch within this many pixels of a depth edge (depths differing
-  // by more than 5 %), where the rounded pixel's depth may be another surface's.
+  // Diagnosis: no distance for a patch whose back-end grid (+-3 px) crosses a depth edge: a
+  // second difference of the depth over this many pixels (along x, y and both diagonals) above 2 %
+  // of the depth. A plane seen at a grazing angle has none (its inverse depth is affine).
   if (const char* edge = std::getenv("NIRSLAM_PHOTOMETRIC_SKIP_DEPTH_EDGES")) {
     const int reach = std::atoi(edge);
     illumination.light_distance_m = [inner = illumination.light_distance_m, &f, reach](const Eigen::Vector2d& pixel) -> std::optional<double> {
       const int x = static_cast<int>(std::lround(pixel.x())), y = static_cast<int>(std::lround(pixel.y()));
       if (x < reach || y < reach || x + reach >= f.depth.cols || y + reach >= f.depth.rows) return std::nullopt;
-      const float centre = f.depth.at<float>(y, x);
-      for (int dy = -reach; dy <= reach; ++dy)
-        for (int dx = -reach; dx <= reach; ++dx)
-          if (std::abs(f.depth.at<float>(y + dy, x + dx) - centre) > 0.05f * centre) return std::nullopt;
+      const double rho = 1.0 / f.depth.at<float>(y, x);
+      for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}, std::pair{1, -1}}) {
+        const double ahead = 1.0 / f.depth.at<float>(y + reach * dy, x + reach * dx);
+        const double behind = 1.0 / f.depth.at<float>(y - reach * dy, x - reach * dx);
+        if (std::abs(ahead + behind - 2.0 * rho) > 0.02 * rho) return std::nullopt;
+      }
       return inner(pixel);
     };
   }

@@ -90,7 +90,6 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
       odometry.fail_at("surface_normal_fit",
                        "expected 'spread' or 'inverse-depth-plane', got '" + *fit + "'");
   }
-  odometry.read<double>("surface_normal_max_log_cosine_sigma", pipeline.odometry.lamp_surface_normal_max_log_cosine_sigma, 0.0, 100.0);
   odometry.read_flag("lamp_factor_derivatives", pipeline.odometry.lamp_factor_derivatives);
   odometry.read_flag("beam_corrected_weights", pipeline.odometry.beam_corrected_weights);
   odometry.read_flag("lamp_in_traces", pipeline.odometry.lamp_in_traces);

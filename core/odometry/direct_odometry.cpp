@@ -213,7 +213,6 @@ struct DirectOdometry::Impl {
     if (!options.illuminator_correction || !options.lamp_surface_normals) return;
     SurfaceNormalOptions normal_options;
     normal_options.fit = options.lamp_surface_normal_fit;
-    normal_options.max_log_cosine_sigma = options.lamp_surface_normal_max_log_cosine_sigma;
     for (auto& f : window->frames()) estimate_surface_normals(cameras[0], f.points, normal_options);
   }
 

@@ -45,28 +45,8 @@ std::optional<Eigen::Vector3d> inverse_depth_plane_normal(const LevelCamera& cam
   // rho = a' + b x + c y in absolute coordinates (a' = a - b x0 - c y0) is the plane
   // (b, c, a') . p = 1 for p = (x, y, 1) / rho.
   Eigen::Vector3d n(plane[1], plane[2], plane[0] - plane[1] * origin.x() - plane[2] * origin.y());
-  const double length = n.norm();
-  if (!(length > 0.0)) return std::nullopt;
-  n /= length;
-  if (options.max_log_cosine_sigma > 0.0) {
-    // The fit's own uncertainty (residual variance times (A^T A)^-1) carried to the normal and on
-    // to log cos(theta) towards the camera (the lamp sits beside it): at a grazing view a small
-    // tilt is a large change of the lamp's factor, face on none.
-    if (count < 4.0) return std::nullopt;
-    const double residual_variance = squared_residual / (count - 3.0);
-    Eigen::Matrix3d to_normal;
-    to_normal << 0.0, 1.0, 0.0,  //
-        0.0, 0.0, 1.0,           //
-        1.0, -origin.x(), -origin.y();
-    const Eigen::Matrix3d plane_covariance = residual_variance * normal_matrix.inverse();
-    const Eigen::Vector3d to_camera = -camera.unproject(at.pixel).normalized();
-    const double cos_theta = std::abs(n.dot(to_camera));
-    // Only a tilt across n moves the normal: d cos = dn . (l - cos n), and dn = (I - n n^T) dm / |m|.
-    const Eigen::Vector3d tilt_direction = to_camera - n.dot(to_camera) * n;
-    const Eigen::Vector3d along = (to_normal.transpose() * tilt_direction) / length;
-    const double cos_variance = along.dot(plane_covariance * along);
-    if (!(cos_theta > 0.0) || !(std::sqrt(cos_variance) <= options.max_log_cosine_sigma * cos_theta)) return std::nullopt;
-  }
+  if (!(n.norm() > 0.0)) return std::nullopt;
+  n.normalize();
   if (n.dot(camera.unproject(at.pixel)) > 0.0) n = -n;  // towards the camera
   return n;
 }

@@ -155,7 +155,6 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  lamp_distance_plane_fit: false\n  lamp_cosine_to_calibration: true\n  lamp_cosine_held_per_track: false\n"
                 "  lamp_cosine_from_inverse_depth_plane: false\nodometry:\n  points_per_frame: 1500\n"
                 "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n  surface_normal_fit: inverse-depth-plane\n"
-                "  surface_normal_max_log_cosine_sigma: 0.2\n"
                 "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"
                 "  track_near_border: true\n  keyframes_follow_surface: false\n  vignette_rim_curvature_weight: 0.25\n"
                 "  lamp_mode_keyframes_follow_surface: true\n  lamp_mode_vignette_rim_curvature_weight: 0.5\n"
@@ -167,7 +166,6 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 5);
   EXPECT_EQ(config.worker.pipeline.odometry.lamp_surface_normal_fit, SurfaceNormalFit::InverseDepthPlane);
-  EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.lamp_surface_normal_max_log_cosine_sigma, 0.2);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.affine_a_prior_known_exposure, 2.5);
   EXPECT_FALSE(config.worker.pipeline.calibration.background_thread);
   EXPECT_EQ(config.worker.pipeline.calibration.iterations_per_keyframe, 2);

@@ -100,8 +100,6 @@ struct OdometryOptions {
   bool lamp_surface_normals = true;
   // How those normals are fitted (surface_normals.hpp).
   SurfaceNormalFit lamp_surface_normal_fit = SurfaceNormalFit::Spread;
-  // The inverse-depth plane's normals only where log cos(theta)'s standard error is under this (0: any).
-  double lamp_surface_normal_max_log_cosine_sigma = 0.0;
   // g's derivatives in the Jacobians (false: g evaluated at the current estimates only).
   bool lamp_factor_derivatives = true;
   // With a beam: residuals and gradients divided by the target's B(alpha_t)^gamma before

@@ -24,9 +24,6 @@ struct SurfaceNormalOptions {
   SurfaceNormalFit fit = SurfaceNormalFit::Spread;
   // The inverse-depth plane's fit must hold within this (rms of rho's residuals over the mean rho).
   double max_relative_residual = 0.1;
-  // And the standard error its residuals give log cos(theta) towards the camera must stay under
-  // this (0: not tested).
-  double max_log_cosine_sigma = 0.0;
 };
 
 // Sets (or clears) `normal` of every point hosted by one keyframe: unit, in the host frame,

@@ -117,6 +117,7 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
     options_.calibration.exposure.follow_deformation = options_.lamp_mode_exposure_follows_surface;
     options_.calibration.backend.vignette_rim_curvature_weight = options_.lamp_mode_vignette_rim_curvature_weight;
     options_.calibration.tracker.skip_coarse_levels_at_border = options_.lamp_mode_track_near_border;
+    options_.calibration.tracker.min_reference_ncc = options_.lamp_mode_min_reference_ncc;
   }
   const bool given_calibration = runs_calibration(options_.mode) && !options_.given_calibration_folder.empty();
   const double configured_beam_exponent = options_.odometry.beam_exponent;

@@ -65,6 +65,8 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_vignette_rim_curvature_weight,
                    PipelineOptions{}.lamp_mode_vignette_rim_curvature_weight);
   EXPECT_EQ(config.worker.pipeline.lamp_mode_track_near_border, PipelineOptions{}.lamp_mode_track_near_border);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_reference_ncc, PhotometricTrackerOptions{}.min_reference_ncc);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_min_reference_ncc, PipelineOptions{}.lamp_mode_min_reference_ncc);
   EXPECT_EQ(config.worker.pipeline.calibration.exposure.follow_deformation,
             OnlineCalibrationOptions{}.exposure.follow_deformation);
   EXPECT_TRUE(OnlineCalibrationOptions{}.exposure.follow_deformation);
@@ -160,7 +162,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  lamp_mode_keyframes_follow_surface: true\n  lamp_mode_vignette_rim_curvature_weight: 0.5\n"
                 "  lamp_mode_track_near_border: false\n  exposure_follows_surface: false\n"
                 "  lamp_mode_exposure_follows_surface: true\n  keyframes_by_reported_exposure: false\n"
-                "  residual: observed\n  lamp_mode_residual: predicted\n"));
+                "  residual: observed\n  lamp_mode_residual: predicted\n"
+                "  min_reference_ncc: 0.7\n  lamp_mode_min_reference_ncc: 0.9\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_FALSE(config.worker.pipeline_mode_automatic) << "a named mode is not automatic";
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
@@ -171,6 +174,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_EQ(config.worker.pipeline.calibration.iterations_per_keyframe, 2);
   EXPECT_FALSE(config.worker.pipeline.calibration.run_backend);
   EXPECT_TRUE(config.worker.pipeline.calibration.tracker.skip_coarse_levels_at_border);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_reference_ncc, 0.7);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_min_reference_ncc, 0.9);
   EXPECT_FALSE(config.worker.pipeline.calibration.keyframes_follow_deformation);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.vignette_rim_curvature_weight, 0.25);
   EXPECT_TRUE(config.worker.pipeline.lamp_mode_keyframes_follow_surface);

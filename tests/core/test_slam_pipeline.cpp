@@ -78,6 +78,8 @@ TEST(SlamPipeline, TheLampModeTakesItsOwnCalibrationSettings) {
   options.calibration.background_thread = false;
   options.calibration.tracker.skip_coarse_levels_at_border = false;
   options.lamp_mode_track_near_border = true;
+  options.calibration.tracker.min_reference_ncc = 0.7;
+  options.lamp_mode_min_reference_ncc = 0.9;
   options.calibration.keyframes_follow_deformation = true;
   options.calibration.backend.vignette_rim_curvature_weight = 1.0;
   options.mode = PipelineMode::Calibrated;
@@ -86,6 +88,7 @@ TEST(SlamPipeline, TheLampModeTakesItsOwnCalibrationSettings) {
     EXPECT_TRUE(calibrated.options().calibration.keyframes_follow_deformation);
     EXPECT_DOUBLE_EQ(calibrated.options().calibration.backend.vignette_rim_curvature_weight, 1.0);
     EXPECT_FALSE(calibrated.options().calibration.tracker.skip_coarse_levels_at_border);
+    EXPECT_DOUBLE_EQ(calibrated.options().calibration.tracker.min_reference_ncc, 0.7);
     EXPECT_TRUE(calibrated.options().calibration.exposure.follow_deformation);
   }
   options.mode = PipelineMode::Illuminated;
@@ -94,6 +97,7 @@ TEST(SlamPipeline, TheLampModeTakesItsOwnCalibrationSettings) {
     EXPECT_FALSE(lamp.options().calibration.keyframes_follow_deformation);
     EXPECT_DOUBLE_EQ(lamp.options().calibration.backend.vignette_rim_curvature_weight, 0.0);
     EXPECT_TRUE(lamp.options().calibration.tracker.skip_coarse_levels_at_border);
+    EXPECT_DOUBLE_EQ(lamp.options().calibration.tracker.min_reference_ncc, 0.9);
     EXPECT_FALSE(lamp.options().calibration.exposure.follow_deformation);
   }
   options.lamp_mode_keyframes_follow_surface = true;

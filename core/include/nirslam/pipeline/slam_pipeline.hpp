@@ -132,6 +132,11 @@ struct PipelineOptions {
   // the path, parking 50 / 100 W worse), and the co-lit calibration with the true distances and
   // cosine lost its vignette (room 0.0037 -> 0.044; README "Illuminator correction", session 24).
   bool lamp_mode_track_near_border = false;
+  // ... and of calibration.tracker.min_reference_ncc (a track dropped once its patch correlates
+  // with its first one below this; 0: no check). A patch over a depth edge takes one lamp distance
+  // for pixels of two surfaces, the largest misfit found with the simulator's exact geometry
+  // (README "Illuminator correction", session 29); the drift check drops many of them.
+  double lamp_mode_min_reference_ncc = 0.0;
   // The cosine's normals (lamp_cosine_to_calibration) from the plane in inverse depth: the 3-D
   // scatter's were far off on the tunnel's walls (light_distance_map.hpp). Only the cosine asks
   // for a normal, so the distances are the same either way.

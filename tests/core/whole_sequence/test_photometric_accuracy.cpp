@@ -211,6 +211,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
     options.backend.initial_response = sim_options.response;
     // Under the lamp the halo factor (the vignette the back end estimates then).
     options.backend.initial_vignette = sim_options.powers_w.front() > 0.0 ? Simulator(sim_options).halo_factor() : sim_options.vignette;
+    // =multi-start keeps the multi-start's probes (which may leave the true start).
     options.backend.multi_start = std::string(std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE")) == "multi-start";
   }
   AccuracyRun out;
@@ -492,77 +493,99 @@ TEST(PhotometricAccuracy, CoLitTable) {
     }
 }
 
-// Diagnosis (NIRSLAM_PHOTOMETRIC_RADIANCE_PROBE=scene): does the simulator's radiance follow the
-// lamp model the calibration fits, L = rho B(alpha) cos(theta) / d^2? Surface points from the first
-// frame's depths, followed through the sequence (projected, kept where the depth map agrees):
-// per frame the median and spread of log(L d^2 / (B cos)) against the first frame, by radius.
-TEST(PhotometricAccuracy, RadianceFollowsTheLampModel) {
-  const char* probe = std::getenv("NIRSLAM_PHOTOMETRIC_RADIANCE_PROBE");
-  if (probe == nullptr) GTEST_SKIP() << "set NIRSLAM_PHOTOMETRIC_RADIANCE_PROBE=room|outdoor|parking|tunnel";
-  sim::SceneKind scene = sim::SceneKind::Room;
-  for (const sim::SceneKind kind : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
-    if (std::string(probe) == sim::to_string(kind)) scene = kind;
-  const SimulatorOptions options = co_lit(scene, ResponsePreset::Gamma, 150);
-  Simulator sim(options);
-  const sim::Illuminator light = sim.lighting(50.0).illuminator;
-  const auto model_log = [&](const SimulatedFrame& f, const Eigen::Vector3d& p_world, Eigen::Vector2d* pixel_out) -> std::optional<double> {
-    const Eigen::Vector3d p_cam = f.T_world_cam.inverse() * p_world;
-    if (!(p_cam.z() > 0.05)) return std::nullopt;
-    const auto pixel = sim.camera()->project(p_cam);
-    if (!pixel) return std::nullopt;
-    const int x = static_cast<int>(std::lround(pixel->x())), y = static_cast<int>(std::lround(pixel->y()));
-    if (x < 2 || y < 2 || x >= f.radiance.cols - 2 || y >= f.radiance.rows - 2) return std::nullopt;
-    if (std::abs(f.depth.at<float>(y, x) - p_cam.z()) > 0.01 * p_cam.z()) return std::nullopt;  // hidden
-    const Eigen::Vector3d from_light = p_cam - options.light_offset_cam;
-    const double d = from_light.norm();
-    const auto ray = sim.camera()->unproject(*pixel);
-    const Eigen::Vector3d origin = f.T_world_cam.translation();
-    const auto hit = sim::cast_ray(sim.scene(), origin, f.T_world_cam * ray->normalized() - origin);
-    if (!hit) return std::nullopt;
-    const Eigen::Vector3d light_world = f.T_world_cam * options.light_offset_cam;
-    const double cos_theta = hit->normal.dot((light_world - hit->point).normalized());
-    if (!(cos_theta > 0.05)) return std::nullopt;
-    const double alpha = std::acos(std::clamp(from_light.normalized().z(), -1.0, 1.0));
-    const double L = f.radiance.at<float>(y, x);
-    if (!(L > 0.0)) return std::nullopt;
-    *pixel_out = *pixel;
-    return std::log(L * d * d / (light.beam(alpha) * std::abs(cos_theta)));
-  };
-  std::vector<Eigen::Vector3d> points;
-  std::vector<double> reference;
-  int frame = 0;
-  while (auto f = sim.next(true)) {
-    if (frame == 0) {
-      for (int y = 8; y < f->depth.rows - 8; y += 6)
-        for (int x = 8; x < f->depth.cols - 8; x += 6) {
-          const double z = f->depth.at<float>(y, x);
-          const auto ray = sim.camera()->unproject(Eigen::Vector2d(x, y));
-          if (!(z > 0.0) || !ray) continue;
-          const Eigen::Vector3d p_world = f->T_world_cam * ((z / ray->z()) * *ray);
-          Eigen::Vector2d pixel;
-          if (const auto m = model_log(*f, p_world, &pixel)) {
-            points.push_back(p_world);
-            reference.push_back(*m);
+// Does the simulator's radiance follow the lamp model the calibration fits, L = rho B(alpha)
+// cos(theta) / d^2? Surface points from the first frame's depths, followed through the co-lit
+// sequence without its ambient light (projected, kept where the depth map agrees): every 10th
+// frame the median change of log(L d^2 / (B cos)) since the first frame, for the image's centre
+// (radius < 0.5) and the rest. Measured: within 0.003 on all four scenes. With the scene's ambient
+// light (DESIGN.md's "+ ambient", which the calibration does not model): the street's by frame
+// 140 -0.16 at the centre and -0.35 at the rim (its facades far off take much of their light
+// from the dusk sky), parking's and the tunnel's -0.014 / -0.013 (NIRSLAM_PHOTOMETRIC_RADIANCE_PROBE=scene
+// runs one scene with and without). So with the simulator's exact geometry the lamp-lit
+// calibration's misfit (README "Illuminator correction", session 29) is not the lamp model's.
+TEST(PhotometricAccuracy, SimulatedRadianceFollowsTheLampModel) {
+  const char* only = std::getenv("NIRSLAM_PHOTOMETRIC_RADIANCE_PROBE");
+  for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
+   for (const bool ambient : {false, true}) {
+    if (only != nullptr && std::string(only) != sim::to_string(scene)) continue;
+    if (ambient && scene != sim::SceneKind::Outdoor && only == nullptr) continue;  // a few % elsewhere
+    SimulatorOptions options = co_lit(scene, ResponsePreset::Gamma, 150);
+    options.ambient_irradiance = ambient ? std::nullopt : std::optional<double>(0.0);
+    Simulator sim(options);
+    const sim::Illuminator light = sim.lighting(options.powers_w.front()).illuminator;
+    // log(L d^2 / (B cos)) of a surface point in frame f, where it is seen.
+    const auto model_log = [&](const SimulatedFrame& f, const Eigen::Vector3d& p_world,
+                               Eigen::Vector2d* pixel_out) -> std::optional<double> {
+      const Eigen::Vector3d p_cam = f.T_world_cam.inverse() * p_world;
+      if (!(p_cam.z() > 0.05)) return std::nullopt;
+      const auto pixel = sim.camera()->project(p_cam);
+      if (!pixel) return std::nullopt;
+      const int x = static_cast<int>(std::lround(pixel->x())), y = static_cast<int>(std::lround(pixel->y()));
+      if (x < 2 || y < 2 || x >= f.radiance.cols - 2 || y >= f.radiance.rows - 2) return std::nullopt;
+      if (std::abs(f.depth.at<float>(y, x) - p_cam.z()) > 0.01 * p_cam.z()) return std::nullopt;  // hidden
+      const auto ray = sim.camera()->unproject(*pixel);
+      if (!ray) return std::nullopt;
+      const Eigen::Vector3d origin = f.T_world_cam.translation();
+      const auto hit = sim::cast_ray(sim.scene(), origin, f.T_world_cam * ray->normalized() - origin);
+      if (!hit) return std::nullopt;
+      const Eigen::Vector3d light_world = f.T_world_cam * options.light_offset_cam;
+      const double cos_theta = hit->normal.dot((light_world - hit->point).normalized());
+      if (!(cos_theta > 0.05)) return std::nullopt;
+      const Eigen::Vector3d from_light = p_cam - options.light_offset_cam;
+      const double alpha = std::acos(std::clamp(from_light.normalized().z(), -1.0, 1.0));
+      const double L = f.radiance.at<float>(y, x);
+      if (!(L > 0.0)) return std::nullopt;
+      *pixel_out = *pixel;
+      return std::log(L * from_light.squaredNorm() / (light.beam(alpha) * cos_theta));
+    };
+    const auto median = [](std::vector<double> v) {
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+      return v[v.size() / 2];
+    };
+    std::vector<Eigen::Vector3d> points;
+    std::vector<double> first;
+    int frame = 0, checked = 0;
+    double largest_change = 0.0;
+    while (auto f = sim.next(true)) {
+      if (frame == 0) {
+        for (int y = 8; y < f->depth.rows - 8; y += 6)
+          for (int x = 8; x < f->depth.cols - 8; x += 6) {
+            const double z = f->depth.at<float>(y, x);
+            const auto ray = sim.camera()->unproject(Eigen::Vector2d(x, y));
+            if (!(z > 0.0) || !ray) continue;
+            const Eigen::Vector3d p_world = f->T_world_cam * ((z / ray->z()) * *ray);
+            Eigen::Vector2d pixel;
+            if (const auto m = model_log(*f, p_world, &pixel)) {
+              points.push_back(p_world);
+              first.push_back(*m);
+            }
           }
+        ASSERT_GT(points.size(), 500u) << sim::to_string(scene);
+      } else if (frame % 10 == 0) {
+        std::vector<double> centre, rim;
+        for (std::size_t i = 0; i < points.size(); ++i) {
+          Eigen::Vector2d pixel;
+          const auto m = model_log(*f, points[i], &pixel);
+          if (!m) continue;
+          const double r = VignetteModel::radius(pixel.x(), pixel.y(), f->radiance.cols, f->radiance.rows);
+          (r < 0.5 ? centre : rim).push_back(*m - first[i]);
         }
-    } else if (frame % 10 == 0) {
-      std::vector<double> inner, outer;
-      for (std::size_t i = 0; i < points.size(); ++i) {
-        Eigen::Vector2d pixel;
-        const auto m = model_log(*f, points[i], &pixel);
-        if (!m) continue;
-        const double r = VignetteModel::radius(pixel.x(), pixel.y(), f->radiance.cols, f->radiance.rows);
-        (r < 0.5 ? inner : outer).push_back(*m - reference[i]);
+        for (const auto* part : {&centre, &rim}) {
+          if (part->size() < 50) continue;
+          ++checked;
+          largest_change = std::max(largest_change, std::abs(median(*part)));
+          if (!ambient) EXPECT_LT(std::abs(median(*part)), 0.03) << sim::to_string(scene) << " frame " << frame;
+        }
+        std::printf("%s%s frame %3d: log(L d^2 / (B cos)) change, centre %+.4f over %zu points, rim %+.4f over %zu\n",
+                    std::string(sim::to_string(scene)).c_str(), ambient ? " + ambient" : "", frame, centre.empty() ? 0.0 : median(centre), centre.size(),
+                    rim.empty() ? 0.0 : median(rim), rim.size());
       }
-      const auto median = [](std::vector<double> v) {
-        if (v.empty()) return std::nan("");
-        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-        return v[v.size() / 2];
-      };
-      std::printf("frame %3d: log(L d^2 / (B cos)) change, radius < 0.5: median %+.4f over %zu; outside: %+.4f over %zu\n", frame,
-                  median(inner), inner.size(), median(outer), outer.size());
+      ++frame;
     }
-    ++frame;
+    EXPECT_GE(checked, 6) << sim::to_string(scene) << ": the points left the view too early to say";
+    // The street's dusk sky is not in the model the calibration fits: its facades far off take
+    // most of their light from it.
+    if (ambient && scene == sim::SceneKind::Outdoor) EXPECT_GT(largest_change, 0.1);
   }
 }
 

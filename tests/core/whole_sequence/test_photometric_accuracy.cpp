@@ -574,7 +574,9 @@ TEST(PhotometricAccuracy, SimulatedRadianceFollowsTheLampModel) {
           if (part->size() < 50) continue;
           ++checked;
           largest_change = std::max(largest_change, std::abs(median(*part)));
-          if (!ambient) EXPECT_LT(std::abs(median(*part)), 0.03) << sim::to_string(scene) << " frame " << frame;
+          if (!ambient) {
+            EXPECT_LT(std::abs(median(*part)), 0.03) << sim::to_string(scene) << " frame " << frame;
+          }
         }
         std::printf("%s%s frame %3d: log(L d^2 / (B cos)) change, centre %+.4f over %zu points, rim %+.4f over %zu\n",
                     std::string(sim::to_string(scene)).c_str(), ambient ? " + ambient" : "", frame, centre.empty() ? 0.0 : median(centre), centre.size(),
@@ -585,7 +587,9 @@ TEST(PhotometricAccuracy, SimulatedRadianceFollowsTheLampModel) {
     EXPECT_GE(checked, 6) << sim::to_string(scene) << ": the points left the view too early to say";
     // The street's dusk sky is not in the model the calibration fits: its facades far off take
     // most of their light from it.
-    if (ambient && scene == sim::SceneKind::Outdoor) EXPECT_GT(largest_change, 0.1);
+    if (ambient && scene == sim::SceneKind::Outdoor) {
+      EXPECT_GT(largest_change, 0.1);
+    }
   }
 }
 

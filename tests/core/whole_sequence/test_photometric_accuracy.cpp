@@ -67,6 +67,19 @@ SimulatorOptions co_lit(sim::SceneKind scene, ResponsePreset response, int frame
   return o;
 }
 
+// The lamp's true incidence cos(theta) at the surface seen through `pixel` from the camera pose
+// T_world_cam (a ray cast into the scene; its normal against the direction to the lamp);
+// std::nullopt where the ray hits nothing.
+std::optional<double> true_light_cosine(const Simulator& sim, const SE3& T_world_cam, const Eigen::Vector2d& pixel) {
+  const auto ray = sim.camera()->unproject(pixel);
+  if (!ray) return std::nullopt;
+  const Eigen::Vector3d origin = T_world_cam.translation();
+  const auto hit = sim::cast_ray(sim.scene(), origin, T_world_cam * ray->normalized() - origin);
+  if (!hit) return std::nullopt;
+  const Eigen::Vector3d light = T_world_cam * sim.options().light_offset_cam;
+  return hit->normal.dot((light - hit->point).normalized());
+}
+
 // Ground-truth light distances of the frame last rendered with depth (the simulator knows them;
 // the pipeline hands the odometry's depths the same way).
 // With `cosine` also the light's true incidence cos(theta) from the scene's surface normal at the
@@ -121,16 +134,8 @@ FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& 
   }
   if (cosine)
     illumination.light_cosine = [&sim, &f](const Eigen::Vector2d& pixel) -> std::optional<double> {
-      const auto ray = sim.camera()->unproject(pixel);
-      if (!ray) return std::nullopt;
-      const Eigen::Vector3d origin = f.T_world_cam.translation();
-      const Eigen::Vector3d direction = f.T_world_cam * ray->normalized() - origin;
-      const auto hit = sim::cast_ray(sim.scene(), origin, direction);
-      if (!hit) return std::nullopt;
-      const Eigen::Vector3d light = f.T_world_cam * sim.options().light_offset_cam;
-      const Eigen::Vector3d to_light = (light - hit->point).normalized();
-      const double cos_theta = hit->normal.dot(to_light);
-      if (!(cos_theta > 0.02)) return std::nullopt;
+      const auto cos_theta = true_light_cosine(sim, f.T_world_cam, pixel);
+      if (!cos_theta || !(*cos_theta > 0.02)) return std::nullopt;
       return cos_theta;
     };
   return illumination;
@@ -523,20 +528,14 @@ TEST(PhotometricAccuracy, SimulatedRadianceFollowsTheLampModel) {
       const int x = static_cast<int>(std::lround(pixel->x())), y = static_cast<int>(std::lround(pixel->y()));
       if (x < 2 || y < 2 || x >= f.radiance.cols - 2 || y >= f.radiance.rows - 2) return std::nullopt;
       if (std::abs(f.depth.at<float>(y, x) - p_cam.z()) > 0.01 * p_cam.z()) return std::nullopt;  // hidden
-      const auto ray = sim.camera()->unproject(*pixel);
-      if (!ray) return std::nullopt;
-      const Eigen::Vector3d origin = f.T_world_cam.translation();
-      const auto hit = sim::cast_ray(sim.scene(), origin, f.T_world_cam * ray->normalized() - origin);
-      if (!hit) return std::nullopt;
-      const Eigen::Vector3d light_world = f.T_world_cam * options.light_offset_cam;
-      const double cos_theta = hit->normal.dot((light_world - hit->point).normalized());
-      if (!(cos_theta > 0.05)) return std::nullopt;
+      const auto cos_theta = true_light_cosine(sim, f.T_world_cam, *pixel);
+      if (!cos_theta || !(*cos_theta > 0.05)) return std::nullopt;
       const Eigen::Vector3d from_light = p_cam - options.light_offset_cam;
       const double alpha = std::acos(std::clamp(from_light.normalized().z(), -1.0, 1.0));
       const double L = f.radiance.at<float>(y, x);
       if (!(L > 0.0)) return std::nullopt;
       *pixel_out = *pixel;
-      return std::log(L * from_light.squaredNorm() / (light.beam(alpha) * cos_theta));
+      return std::log(L * from_light.squaredNorm() / (light.beam(alpha) * *cos_theta));
     };
     const auto median = [](std::vector<double> v) {
       std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());

@@ -125,6 +125,10 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
         calibration.fail_at(key, "expected predicted or observed, got '" + *name + "'");
     }
   }
+  // Points the fitted model cannot explain left out after each solve (photometric_backend.hpp,
+  // point_rejection_sigmas), without and with the lamp's factor; 0: off.
+  calibration.read<double>("point_rejection_sigmas", pipeline.calibration.backend.point_rejection_sigmas, 0.0, 100.0);
+  calibration.read<double>("lamp_mode_point_rejection_sigmas", pipeline.calibration.backend.lit_point_rejection_sigmas, 0.0, 100.0);
   calibration.read_flag("lamp_mode_keyframes_follow_surface", pipeline.lamp_mode_keyframes_follow_surface);
   calibration.read<double>("lamp_mode_vignette_rim_curvature_weight", pipeline.lamp_mode_vignette_rim_curvature_weight, 0.0, 1e6);
   calibration.read_flag("lamp_mode_track_near_border", pipeline.lamp_mode_track_near_border);

@@ -473,6 +473,54 @@ double PhotometricBackend::scaled_residual(const State& state, std::size_t point
   return (255.0 * u * u - irradiance) * k;
 }
 
+int PhotometricBackend::drop_inconsistent_points(State& state, double sigmas) {
+  std::vector<double> point_rms(points_.size(), 0.0);
+  std::vector<double> abs_s;
+  abs_s.reserve(observations_.size());
+  for (std::size_t pi = 0; pi < points_.size(); ++pi) {
+    double squared = 0.0;
+    int normal = 0;
+    for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
+      if (observations_[static_cast<std::size_t>(i)].bound != 0) continue;
+      double slope = 0.0, u = 0.0;
+      const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope, &u) * std::sqrt(model_noise_weight(u, slope));
+      abs_s.push_back(std::abs(s));
+      squared += s * s;
+      ++normal;
+    }
+    point_rms[pi] = normal > 0 ? std::sqrt(squared / normal) : 0.0;
+  }
+  if (abs_s.empty()) return 0;
+  const double bound = sigmas * 1.4826 * median_in_place(abs_s);
+  const auto kept = static_cast<int>(std::count_if(point_rms.begin(), point_rms.end(), [&](double rms) { return rms <= bound; }));
+  const int dropped = static_cast<int>(points_.size()) - kept;
+  if (dropped == 0 || kept < options_.min_points) return 0;
+  std::vector<Point> points;
+  std::vector<Observation> observations;
+  std::vector<double> radiance, u;
+  points.reserve(static_cast<std::size_t>(kept));
+  radiance.reserve(static_cast<std::size_t>(kept));
+  observations.reserve(observations_.size());
+  u.reserve(observations_.size());
+  for (std::size_t pi = 0; pi < points_.size(); ++pi) {
+    if (point_rms[pi] > bound) continue;
+    Point p;
+    p.begin = static_cast<int>(observations.size());
+    for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
+      observations.push_back(observations_[static_cast<std::size_t>(i)]);
+      u.push_back(state.u[static_cast<std::size_t>(i)]);
+    }
+    p.end = static_cast<int>(observations.size());
+    points.push_back(p);
+    radiance.push_back(state.radiance[pi]);
+  }
+  points_ = std::move(points);
+  observations_ = std::move(observations);
+  state.radiance = std::move(radiance);
+  state.u = std::move(u);
+  return dropped;
+}
+
 double PhotometricBackend::model_noise_weight(double u, double slope) const {
   if (!lit_problem_ || !(model_sigma_log_ > 0.0)) return 1.0;
   const double grey_per_log_irradiance = 127.5 * u * slope;  // dI/d log X = X f'(X), I in grey levels
@@ -1213,6 +1261,15 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     remaining = std::max(0, max_iterations - probe);
   }
   step.converged = remaining == 0 ? false : run_lm(state, remaining);
+  if (const double sigmas = lit_problem_ ? options_.lit_point_rejection_sigmas : options_.point_rejection_sigmas;
+      sigmas > 0.0 && std::isfinite(state.cost)) {
+    step.points_rejected = drop_inconsistent_points(state, sigmas);
+    if (step.points_rejected > 0) {
+      step.points = static_cast<int>(points_.size());
+      state.cost = total_cost(state);
+      step.converged = run_lm(state, std::max(remaining, 1));
+    }
+  }
   step.iterations = total_iterations;
   step.cost = state.cost / nobs;
   if (!state.c.allFinite() || !state.v.allFinite()) {
@@ -1273,6 +1330,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
                   step.clip_bounds_violated, step.clip_bound_violation);
     step.status += bounds;
   }
+  if (step.points_rejected > 0) step.status += "; " + std::to_string(step.points_rejected) + " inconsistent points left out";
   if (!held.empty()) step.status += "; " + held;
   return step;
 }

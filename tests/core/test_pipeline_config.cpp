@@ -76,6 +76,9 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_EQ(config.worker.pipeline.calibration.backend.residual_form, PhotometricBackendOptions{}.residual_form);
   EXPECT_EQ(PhotometricBackendOptions{}.residual_form, PhotometricResidualForm::PredictedGrey);
   EXPECT_EQ(config.worker.pipeline.calibration.backend.lit_residual_form, PhotometricBackendOptions{}.lit_residual_form);
+  EXPECT_EQ(config.worker.pipeline.calibration.backend.point_rejection_sigmas, PhotometricBackendOptions{}.point_rejection_sigmas);
+  EXPECT_EQ(config.worker.pipeline.calibration.backend.lit_point_rejection_sigmas,
+            PhotometricBackendOptions{}.lit_point_rejection_sigmas);
 }
 
 TEST(PipelineConfig, UnknownResidualFormNamesTheKeyAndTheValue) {
@@ -163,7 +166,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  lamp_mode_track_near_border: false\n  exposure_follows_surface: false\n"
                 "  lamp_mode_exposure_follows_surface: true\n  keyframes_by_reported_exposure: false\n"
                 "  residual: observed\n  lamp_mode_residual: predicted\n"
-                "  min_reference_ncc: 0.7\n  lamp_mode_min_reference_ncc: 0.9\n"));
+                "  min_reference_ncc: 0.7\n  lamp_mode_min_reference_ncc: 0.9\n"
+                "  point_rejection_sigmas: 3.5\n  lamp_mode_point_rejection_sigmas: 2\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_FALSE(config.worker.pipeline_mode_automatic) << "a named mode is not automatic";
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
@@ -176,6 +180,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_TRUE(config.worker.pipeline.calibration.tracker.skip_coarse_levels_at_border);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_reference_ncc, 0.7);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_min_reference_ncc, 0.9);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.point_rejection_sigmas, 3.5);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.lit_point_rejection_sigmas, 2.0);
   EXPECT_FALSE(config.worker.pipeline.calibration.keyframes_follow_deformation);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.vignette_rim_curvature_weight, 0.25);
   EXPECT_TRUE(config.worker.pipeline.lamp_mode_keyframes_follow_surface);

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -146,7 +147,7 @@ FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& 
 // With light_factor the calibration gets the lamp's true distances, with light_cosine (or
 // NIRSLAM_PHOTOMETRIC_TRUE_COSINE set) also the true cos(theta).
 AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures, bool light_factor = false,
-                bool light_cosine = false) {
+                bool light_cosine = false, const std::function<void(OnlineCalibrationOptions&)>& adjust = {}) {
   light_cosine |= std::getenv("NIRSLAM_PHOTOMETRIC_TRUE_COSINE") != nullptr;
   OnlineCalibrationOptions options;
   options.background_thread = false;  // deterministic
@@ -160,6 +161,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
     options.backend.vignette_rim_curvature_weight = lamp_mode.lamp_mode_vignette_rim_curvature_weight;
     options.tracker.skip_coarse_levels_at_border = lamp_mode.lamp_mode_track_near_border;
   }
+  if (adjust) adjust(options);  // a test's own settings; the variables below still override them
   if (const char* probe = std::getenv("NIRSLAM_PHOTOMETRIC_PROBE")) options.backend.multi_start_probe_iterations = std::atoi(probe);
   if (const char* gauge = std::getenv("NIRSLAM_PHOTOMETRIC_GAUGE_WEIGHT")) options.backend.gamma_gauge_weight = std::atof(gauge);
   if (std::getenv("NIRSLAM_PHOTOMETRIC_FREE_VIGNETTE") != nullptr) options.backend.vignette_monotonic = false;
@@ -190,6 +192,9 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   if (const char* margin = std::getenv("NIRSLAM_PHOTOMETRIC_CLIP_MARGIN")) options.backend.clip_bound_margin_grey = std::atof(margin);
   if (const char* level = std::getenv("NIRSLAM_PHOTOMETRIC_KEYFRAME_SATURATION")) options.keyframe_saturation_level = std::atof(level);
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_RIM_CURVATURE")) options.backend.vignette_rim_curvature_weight = std::atof(w);
+  // Inconsistent points left out after each solve (photometric_backend.hpp), without and with the lamp's factor.
+  if (const char* k = std::getenv("NIRSLAM_PHOTOMETRIC_POINT_REJECTION")) options.backend.point_rejection_sigmas = std::atof(k);
+  if (const char* k = std::getenv("NIRSLAM_PHOTOMETRIC_LIT_POINT_REJECTION")) options.backend.lit_point_rejection_sigmas = std::atof(k);
   // The distances here are the simulator's, exact: no noise in log a to model (fitted anyway, the
   // model noise takes other errors for it: room d^2 + cos 0.0037 -> 0.0225 vignette, 1.6 -> 2.7 %).
   options.backend.lit_log_illumination_sigma = 0.0;
@@ -462,6 +467,38 @@ TEST(PhotometricAccuracy, RoomCoLitDistanceAndCosine) {
   EXPECT_LT(lit.errors.vignette_mean, 0.005);
   EXPECT_LT(lit.errors.exposure_median_relative, 0.02);
   EXPECT_LT(lit.scale_free_mean_grey, 1.2);
+}
+
+// Issue 8, calibration side, session 30: with the simulator's exact distances and cosines the
+// lamp-lit back end still missed the co-lit targets (README "Illuminator correction", session
+// 29), most of all through grid pixels that see something other than one surface point (a depth
+// edge under the 3 x 3 grid). Leaving out the points whose rms residual exceeds 2 robust standard
+// deviations after each solve (PhotometricBackendOptions::lit_point_rejection_sigmas), with the
+// grey-domain residual, needs no depth edges. Measured (gamma response, this test's printout):
+// room response mean 8.90 -> 2.47 grey levels, halo factor 0.0099 -> 0.0046, exposure median
+// 0.92 -> 1.59 %; tunnel 7.32 -> 2.07, 0.0180 -> 0.0088, 2.25 -> 3.56 % (the exposures do not
+// gain: not understood). With the observed form (the lamp mode's default) the rejection helps the
+// halo factor only (room 0.0226 -> 0.0078 at 2 sigmas, response 10.2 -> 12.0).
+TEST(PhotometricAccuracy, CoLitInconsistentPointsLeftOut) {
+  for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Tunnel}) {
+    const auto settings = [](double sigmas) {
+      return [sigmas](OnlineCalibrationOptions& options) {
+        options.backend.lit_residual_form = PhotometricResidualForm::PredictedGrey;
+        options.backend.lit_point_rejection_sigmas = sigmas;
+      };
+    };
+    const AccuracyRun kept = run(co_lit(scene, ResponsePreset::Gamma, 150), true, true, true, settings(0.0));
+    const AccuracyRun left_out = run(co_lit(scene, ResponsePreset::Gamma, 150), true, true, true, settings(2.0));
+    const std::string name(sim::to_string(scene));
+    print((name + " all points").c_str(), kept);
+    print((name + " left out").c_str(), left_out);
+    EXPECT_NE(left_out.estimate->status.find("inconsistent points left out"), std::string::npos) << left_out.estimate->status;
+    EXPECT_LT(left_out.errors.response_mean_grey, 0.5 * kept.errors.response_mean_grey) << name;
+    EXPECT_LT(left_out.errors.vignette_mean, 0.6 * kept.errors.vignette_mean) << name;
+    EXPECT_LT(left_out.errors.response_mean_grey, 3.5) << name;
+    EXPECT_LT(left_out.errors.vignette_mean, scene == sim::SceneKind::Room ? 0.0065 : 0.012) << name;
+    EXPECT_LT(left_out.errors.exposure_median_relative, scene == sim::SceneKind::Room ? 0.025 : 0.05) << name;
+  }
 }
 
 // NIRSLAM_PHOTOMETRIC_ROWS=outdoor,tunnel: only the table rows whose label contains one of them.

@@ -331,6 +331,17 @@ struct PhotometricBackendOptions {
   // when set, the vignette's only unknown is m (starting from its initial exponent), in place of
   // v1..v3 and of the steps above; initial_vignette should be its v at that start.
   std::optional<BeamHalo> beam_halo;
+  // Points whose observations the fitted model cannot explain are left out and the solve goes on
+  // without them: after the solve, a point (one grid pixel of a track) whose rms residual over its
+  // normal samples exceeds this many robust standard deviations of all the window's residuals
+  // (1.4826 median |s|, the noise weights applied) is dropped for this update (the next update
+  // starts from every point again). Its radiance absorbs a constant offset, so what is left is
+  // change the model does not hold: a grid pixel across a depth edge (its distance is the patch
+  // centre's, and the track follows the other side), a specular highlight, a distance the odometry
+  // got wrong. Huber weights only shrink such residuals one by one; this takes out the point.
+  // Without and with the lamp's factor in the window; 0: off.
+  double point_rejection_sigmas = 0.0;
+  double lit_point_rejection_sigmas = 0.0;
   double convergence_relative = 1e-6; // stop when the cost drops by less than this fraction
   double monotonic_margin = 0.01;     // f'(u) below this (at 256 points) is penalised ...
   double monotonic_penalty_weight = 100.0;  // ... with this weight per observation
@@ -352,6 +363,7 @@ struct BackendStep {
   int keyframes = 0;
   int points = 0;
   int observations = 0;       // normal samples
+  int points_rejected = 0;    // left out as inconsistent (options.point_rejection_sigmas)
   int clip_bounds = 0;        // one-sided residuals of clipped samples (see the header) ...
   int clip_bounds_violated = 0;  // ... and how many of them do not hold at the end,
   double clip_bound_violation = 0.0;  // by how much (median |s| of those, grey levels)
@@ -425,6 +437,10 @@ private:
   // inverse variance of the grey-level residual at u with f'(u) = slope, times model_noise_norm_.
   double model_noise_weight(double u, double slope) const;
   void initialise_radiances(State& state) const;
+  // Leaves out the points whose rms residual exceeds `sigmas` robust standard deviations of the
+  // residuals (options.point_rejection_sigmas), from points_, observations_ and `state`, unless
+  // fewer than options.min_points would stay; returns how many.
+  int drop_inconsistent_points(State& state, double sigmas);
   // The response fitted directly to the observations of known-exposure keyframes (see above);
   // std::nullopt when too few points or the fit fails.
   std::optional<Eigen::Vector4d> data_driven_response(const std::vector<double>& exposure, const std::vector<bool>& known,

@@ -491,7 +491,8 @@ int PhotometricBackend::drop_inconsistent_points(State& state, double sigmas) {
     point_rms[pi] = normal > 0 ? std::sqrt(squared / normal) : 0.0;
   }
   if (abs_s.empty()) return 0;
-  const double bound = sigmas * 1.4826 * median_in_place(abs_s);
+  // The floor as for the Huber width: on noise-free data the median is 0 and every point would go.
+  const double bound = sigmas * std::max(1.4826 * median_in_place(abs_s), 0.5);
   const auto kept = static_cast<int>(std::count_if(point_rms.begin(), point_rms.end(), [&](double rms) { return rms <= bound; }));
   const int dropped = static_cast<int>(points_.size()) - kept;
   if (dropped == 0 || kept < options_.min_points) return 0;

@@ -257,6 +257,12 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   options.lamp_cosine_to_calibration = cosine || std::getenv("NIRSLAM_PIPELINE_COSINE") != nullptr;
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_COSINE_HELD")) options.lamp_cosine_held_per_track = std::atoi(v) != 0;
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_LIT_CURVATURE")) options.calibration.backend.lit_log_curvature_weight = std::atof(v);
+  // The back end's lamp-lit residual form ("predicted" or "observed") and its inconsistent points
+  // left out (photometric_backend.hpp), as in the whole-sequence co-lit table.
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_LIT_RESIDUAL"))
+    options.calibration.backend.lit_residual_form =
+        std::string(v) == "predicted" ? PhotometricResidualForm::PredictedGrey : PhotometricResidualForm::ObservedInverse;
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_LIT_POINT_REJECTION")) options.calibration.backend.lit_point_rejection_sigmas = std::atof(v);
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_DISTANCE_SOURCE"))
     options.lamp_distance_source = lamp_distance_source_from_string(v).value_or(LampDistanceSource::Neighbours);
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_PARALLAX")) options.track_light_distances.min_parallax_deg = std::atof(v);

@@ -36,12 +36,9 @@ void BM_PhotometricOnlineProcess640(benchmark::State& state) {
 }
 BENCHMARK(BM_PhotometricOnlineProcess640)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
-void BM_PhotometricBackendUpdate(benchmark::State& state) {
+// Keyframes from the front end, then time one update (4 LM iterations over a 40-keyframe window).
+void time_backend_updates(benchmark::State& state, const OnlineCalibrationOptions& options) {
   static const std::vector<Frame> frames = room_frames(120);
-  // Keyframes from the front end, then time one update (4 LM iterations over a 40-keyframe window),
-  // without (0) and with (1, the default) the straight rim of V.
-  OnlineCalibrationOptions options;
-  options.backend.vignette_rim_curvature_weight = static_cast<double>(state.range(0));
   PhotometricTracker tracker;
   ExposureEstimator estimator(options.backend.initial_response, options.backend.initial_vignette);
   std::vector<PhotometricKeyframe> keyframes;
@@ -54,12 +51,33 @@ void BM_PhotometricBackendUpdate(benchmark::State& state) {
   std::size_t i = 0;
   for (; i < 40; ++i) backend.add_keyframe(keyframes[i]);
   backend.optimise(20);
+  int rejected = 0, updates = 0;
   for (auto _ : state) {
     backend.add_keyframe(keyframes[i++ % keyframes.size()]);
-    benchmark::DoNotOptimize(backend.optimise(options.iterations_per_keyframe));
+    const BackendStep step = backend.optimise(options.iterations_per_keyframe);
+    rejected += step.points_rejected;
+    ++updates;
+    benchmark::DoNotOptimize(step);
   }
+  state.counters["points_rejected"] = updates > 0 ? static_cast<double>(rejected) / updates : 0.0;
+}
+
+// Without (0) and with (1, the default) the straight rim of V.
+void BM_PhotometricBackendUpdate(benchmark::State& state) {
+  OnlineCalibrationOptions options;
+  options.backend.vignette_rim_curvature_weight = static_cast<double>(state.range(0));
+  time_backend_updates(state, options);
 }
 BENCHMARK(BM_PhotometricBackendUpdate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// The default, with inconsistent points left out at this many robust standard deviations (the
+// solve continues without them: up to twice the LM iterations when any go).
+void BM_PhotometricBackendUpdateLeavingOutPoints(benchmark::State& state) {
+  OnlineCalibrationOptions options;
+  options.backend.point_rejection_sigmas = static_cast<double>(state.range(0));
+  time_backend_updates(state, options);
+}
+BENCHMARK(BM_PhotometricBackendUpdateLeavingOutPoints)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace nirslam

@@ -89,13 +89,15 @@ std::string_view to_string(LampDistanceSource source) {
     case LampDistanceSource::Neighbours: return "neighbours";
     case LampDistanceSource::Tracks: return "tracks";
     case LampDistanceSource::TracksElseNeighbours: return "tracks-else-neighbours";
+    case LampDistanceSource::HeldNeighbours: return "held-neighbours";
   }
   return "neighbours";
 }
 
 std::optional<LampDistanceSource> lamp_distance_source_from_string(std::string_view text) {
   for (const LampDistanceSource source :
-       {LampDistanceSource::Neighbours, LampDistanceSource::Tracks, LampDistanceSource::TracksElseNeighbours})
+       {LampDistanceSource::Neighbours, LampDistanceSource::Tracks, LampDistanceSource::TracksElseNeighbours,
+        LampDistanceSource::HeldNeighbours})
     if (text == to_string(source)) return source;
   return std::nullopt;
 }
@@ -169,8 +171,11 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
     }
     if (calibration_ && corrects_illuminator(options_.mode) && options_.lamp_distances_to_calibration)
       light_distances_ = std::make_unique<LightDistanceMap>(*camera_, options_.light_distances);
-    if (light_distances_ && options_.lamp_distance_source != LampDistanceSource::Neighbours)
+    if (light_distances_ && (options_.lamp_distance_source == LampDistanceSource::Tracks ||
+                             options_.lamp_distance_source == LampDistanceSource::TracksElseNeighbours))
       track_distances_ = std::make_unique<TrackLightDistances>(*camera_, options_.track_light_distances);
+    if (light_distances_ && options_.lamp_distance_source == LampDistanceSource::HeldNeighbours)
+      track_points_ = std::make_unique<TrackLightPoints>(*camera_);
     if (light_distances_ && options_.lamp_cosine_to_calibration && options_.lamp_cosine_held_per_track)
       track_cosines_ = std::make_unique<TrackLightCosines>(*camera_, options_.track_light_cosines);
     if (light_distances_ && options_.estimate_light_offset && !options_.light_offset_configured)
@@ -286,8 +291,16 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     CorrectedFrame corrected;
     if (predict_light_distances()) {
       FrameIllumination illumination;
-      if (options_.lamp_distance_source != LampDistanceSource::Tracks)
+      // Held points: no per-frame lookup once a track has its point (a fresh lookup would break the ratio).
+      if (options_.lamp_distance_source != LampDistanceSource::Tracks && !track_points_)
         illumination.light_distance_m = [this](const Eigen::Vector2d& pixel) { return light_distances_->light_distance(pixel); };
+      if (track_points_) {
+        track_points_->begin_frame(*predicted_T_world_cam_, last_pose_->segment);
+        illumination.track_light_distance_m = [this](std::int64_t track_id, const Eigen::Vector2d& pixel) {
+          return track_points_->light_distance(track_id, pixel, options_.odometry.light_offset,
+                                               [&] { return light_distances_->light_distance(pixel); });
+        };
+      }
       if (track_distances_)
         illumination.track_light_distance_m = [this](std::int64_t track_id, const Eigen::Vector2d&) {
           return track_distances_->light_distance(track_id, *predicted_T_world_cam_, options_.odometry.light_offset);
@@ -302,6 +315,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
           std::optional<double> distance;
           if (track_distances_)
             distance = track_distances_->light_distance(track_id, *predicted_T_world_cam_, options_.odometry.light_offset);
+          if (track_points_) distance = track_points_->held_light_distance(track_id, options_.odometry.light_offset);
           if (!distance && options_.lamp_distance_source != LampDistanceSource::Tracks)
             distance = geometry ? std::optional<double>(geometry->distance) : light_distances_->light_distance(pixel);
           if (!distance) return std::nullopt;
@@ -423,6 +437,7 @@ void SlamPipeline::remember_odometry(const OdometryResult& result) {
     if (light_distances_) light_distances_->clear();
     if (track_distances_) track_distances_->clear();
     if (track_cosines_) track_cosines_->clear();
+    if (track_points_) track_points_->clear();
     if (!result.T_world_cam) return;
   }
   previous_pose_ = last_pose_;

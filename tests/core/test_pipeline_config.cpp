@@ -94,6 +94,9 @@ TEST(PipelineConfig, LampDistanceSourceIsReadAndAWrongOneNamed) {
   EXPECT_EQ(config.worker.pipeline.lamp_distance_source, LampDistanceSource::TracksElseNeighbours);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.track_light_distances.min_parallax_deg, 2.5);
   EXPECT_EQ(PipelineOptions{}.lamp_distance_source, LampDistanceSource::Neighbours);
+  EXPECT_EQ(load_pipeline_config(write_pipeline_yaml("lamp_distance_source_held", "pipeline:\n  lamp_distance_source: held-neighbours\n"))
+                .worker.pipeline.lamp_distance_source,
+            LampDistanceSource::HeldNeighbours);
   const std::string error =
       pipeline_config_error(write_pipeline_yaml("lamp_distance_source_bad", "pipeline:\n  lamp_distance_source: depth\n"));
   EXPECT_NE(error.find("pipeline.lamp_distance_source"), std::string::npos) << error;

@@ -168,6 +168,78 @@ private:
   std::vector<double> errors_;
 };
 
+// The lamp distance's ratio along the calibration's own tracks, from three sources (what the
+// back end needs: with exact geometry it meets the co-lit targets only with ratios good to about
+// 1 %, README "Illuminator correction", session 30). NIRSLAM_PIPELINE_RATIO_PROBE=1: for each
+// track, |log(d_est / d_true) now - the same at the track's first frame with a value|, with d_est
+//   neighbours: the odometry's points near the patch, looked up every frame (the default);
+//   tracks: the track's own rays triangulated (pipeline.lamp_distance_source: tracks; needs a
+//           source other than neighbours for the pipeline to keep them);
+//   held: the surface point placed once, at the first neighbours' distance along the pixel's ray,
+//         and carried with the odometry's poses (not in the library: what holding would give).
+class RatioAlongTrackProbe {
+public:
+  void frame(const Simulator& simulator, const SimulatedFrame& f, const SlamPipeline& pipeline, const Eigen::Vector3d& light_offset) {
+    if (!pipeline.light_distance_pose()) return;
+    const SE3& T_world_cam = *pipeline.light_distance_pose();
+    const auto& camera = *simulator.camera();
+    for (const TrackObservation& track : pipeline.calibration()->last_tracks()) {
+      const auto truth = simulator.light_distance(f.depth, track.position);
+      if (!truth) continue;
+      Track& t = tracks_[track.id];
+      const auto neighbours = pipeline.light_distances()->light_distance(track.position);
+      std::optional<double> triangulated;
+      if (pipeline.track_light_distances())
+        triangulated = pipeline.track_light_distances()->light_distance(track.id, T_world_cam, light_offset);
+      std::optional<double> held;
+      if (t.held) {
+        const Eigen::Vector3d p_cam = T_world_cam.inverse() * *t.held;
+        if (p_cam.z() > 0.0) held = (p_cam - light_offset).norm();
+      } else if (neighbours) {
+        if (const auto ray = camera.unproject(track.position)) {
+          const Eigen::Vector3d r = ray->normalized();
+          const double ro = r.dot(light_offset);
+          const double disc = ro * ro - light_offset.squaredNorm() + *neighbours * *neighbours;
+          if (disc > 0.0) {
+            t.held = T_world_cam * Eigen::Vector3d((ro + std::sqrt(disc)) * r);
+            held = neighbours;
+          }
+        }
+      }
+      const std::optional<double> estimates[3] = {neighbours, triangulated, held};
+      for (int source = 0; source < 3; ++source) {
+        if (!estimates[source] || !(*estimates[source] > 0.0)) continue;
+        const double log_error = std::log(*estimates[source] / *truth);
+        if (!t.first[source]) {
+          t.first[source] = log_error;
+          continue;
+        }
+        errors_[source].push_back(std::abs(log_error - *t.first[source]));
+      }
+    }
+  }
+  void print() {
+    const char* names[3] = {"neighbours", "tracks", "held"};
+    for (int source = 0; source < 3; ++source) {
+      std::vector<double>& e = errors_[source];
+      if (e.empty()) continue;
+      std::sort(e.begin(), e.end());
+      const auto q = [&](double p) { return e[static_cast<std::size_t>(p * static_cast<double>(e.size() - 1))]; };
+      const double within = static_cast<double>(std::upper_bound(e.begin(), e.end(), 0.01) - e.begin());
+      std::printf("ratio along tracks, %-10s: |error of log(d / d_first)| median %.4f, 90 %% %.4f; within 0.01: %.1f %% of %zu\n",
+                  names[source], q(0.5), q(0.9), 100.0 * within / static_cast<double>(e.size()), e.size());
+    }
+  }
+
+private:
+  struct Track {
+    std::optional<double> first[3];
+    std::optional<Eigen::Vector3d> held;
+  };
+  std::unordered_map<std::int64_t, Track> tracks_;
+  std::vector<double> errors_[3];
+};
+
 // How well the held cosines follow the truth along each track: log(cos_est / cos_true) minus its
 // value at the track's first probed frame (what the calibration's ratio carries). With
 // NIRSLAM_PIPELINE_COSINE_PROBE set, every 10th frame's figures are printed, with the signed
@@ -275,11 +347,14 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   std::vector<double> spreads;
   DistanceRatioProbe probe;
   CosineRatioProbe cosine_probe;
+  RatioAlongTrackProbe ratio_probe;
   const bool probing = std::getenv("NIRSLAM_PIPELINE_DISTANCE_PROBE") != nullptr;
+  const bool probing_ratios = std::getenv("NIRSLAM_PIPELINE_RATIO_PROBE") != nullptr;
   while (auto f = simulator.next(true)) {
     truth.exposures.emplace_back(f->frame.index, *f->frame.exposure_ms * f->frame.gain.value_or(1.0));
     const PipelineFrameResult result = pipeline.process(f->frame);
     if (probing && result.light_distance_points > 0) probe.frame(simulator, *f, *pipeline.light_distances());
+    if (probing_ratios && result.light_distance_points > 0) ratio_probe.frame(simulator, *f, pipeline, options.odometry.light_offset);
     if (result.light_distance_points == 0) continue;
     ++run.frames_with_distances;
     if (std::getenv("NIRSLAM_PIPELINE_TRACK_PROBE") != nullptr && pipeline.light_distance_pose()) {
@@ -324,6 +399,7 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   }
   pipeline.finish();
   if (probing) probe.print(feed ? "fed" : "plain");
+  if (probing_ratios) ratio_probe.print();
   run.lamp_term = pipeline.photometric_view()->lamp_term;
   run.cosine_change_median = cosine_probe.median_change();
   run.cosine_observations = cosine_probe.observations();

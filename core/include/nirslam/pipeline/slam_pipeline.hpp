@@ -32,6 +32,7 @@
 #include "nirslam/pipeline/light_distance_map.hpp"
 #include "nirslam/pipeline/track_light_cosines.hpp"
 #include "nirslam/pipeline/track_light_distances.hpp"
+#include "nirslam/pipeline/track_light_points.hpp"
 #include "nirslam/sources/source.hpp"
 #include "nirslam/worker/photometric_view.hpp"
 #include "nirslam/worker/trajectory_view.hpp"
@@ -64,9 +65,9 @@ bool corrects_illuminator(PipelineMode mode);
 enum class LampHaloModel { Polynomial, Beam };
 std::optional<LampHaloModel> lamp_halo_model_from_string(const std::string& text);
 
-enum class LampDistanceSource { Neighbours, Tracks, TracksElseNeighbours };
+enum class LampDistanceSource { Neighbours, Tracks, TracksElseNeighbours, HeldNeighbours };
 std::string_view to_string(LampDistanceSource source);
-// "neighbours", "tracks", "tracks-else-neighbours"; std::nullopt for anything else.
+// "neighbours", "tracks", "tracks-else-neighbours", "held-neighbours"; std::nullopt for anything else.
 std::optional<LampDistanceSource> lamp_distance_source_from_string(std::string_view text);
 
 struct PipelineOptions {
@@ -148,7 +149,9 @@ struct PipelineOptions {
   // Where a tracked patch's lamp distance comes from: the odometry's points near it (Neighbours,
   // light_distance_map.hpp), the patch's own track triangulated from the odometry's poses
   // (Tracks, track_light_distances.hpp: none until its rays span the parallax), or the track
-  // where it is triangulated and the neighbours elsewhere (TracksElseNeighbours).
+  // where it is triangulated and the neighbours elsewhere (TracksElseNeighbours), or the
+  // neighbours' distance placed once per track as a surface point and carried with the poses
+  // (HeldNeighbours, track_light_points.hpp).
   LampDistanceSource lamp_distance_source = LampDistanceSource::Neighbours;
   TrackLightDistancesOptions track_light_distances;
   // The lamp's offset from the camera centre (Illuminated mode): when odometry.light_offset is
@@ -287,6 +290,7 @@ private:
   std::unique_ptr<LightDistanceMap> light_distances_;
   std::unique_ptr<TrackLightDistances> track_distances_;
   std::unique_ptr<TrackLightCosines> track_cosines_;
+  std::unique_ptr<TrackLightPoints> track_points_;
   std::optional<SE3> predicted_T_world_cam_;  // of the frame about to be calibrated
   std::vector<Eigen::Vector3d> window_points_;  // the odometry's active points, world frame
   std::optional<TrackedPose> last_pose_;

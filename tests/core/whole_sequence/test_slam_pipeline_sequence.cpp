@@ -176,7 +176,9 @@ private:
 //   tracks: the track's own rays triangulated (pipeline.lamp_distance_source: tracks; needs a
 //           source other than neighbours for the pipeline to keep them);
 //   held: the surface point placed once, at the first neighbours' distance along the pixel's ray,
-//         and carried with the odometry's poses (not in the library: what holding would give).
+//         and carried with the odometry's poses (what pipeline.lamp_distance_source:
+//         held-neighbours does, TrackLightPoints; here on its own so the three are compared in
+//         one run with the same poses).
 class RatioAlongTrackProbe {
 public:
   void frame(const Simulator& simulator, const SimulatedFrame& f, const SlamPipeline& pipeline, const Eigen::Vector3d& light_offset) {
@@ -197,13 +199,8 @@ public:
         if (p_cam.z() > 0.0) held = (p_cam - light_offset).norm();
       } else if (neighbours) {
         if (const auto ray = camera.unproject(track.position)) {
-          const Eigen::Vector3d r = ray->normalized();
-          const double ro = r.dot(light_offset);
-          const double disc = ro * ro - light_offset.squaredNorm() + *neighbours * *neighbours;
-          if (disc > 0.0) {
-            t.held = T_world_cam * Eigen::Vector3d((ro + std::sqrt(disc)) * r);
-            held = neighbours;
-          }
+          t.held = T_world_cam * point_at_light_distance(ray->normalized(), light_offset, *neighbours);
+          held = neighbours;
         }
       }
       const std::optional<double> estimates[3] = {neighbours, triangulated, held};

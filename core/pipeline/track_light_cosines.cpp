@@ -9,21 +9,13 @@
 namespace nirslam {
 
 TrackLightCosines::TrackLightCosines(const CameraModel& camera, TrackLightCosinesOptions options)
-    : camera_(camera), options_(options) {}
+    : camera_(camera), options_(options), normals_world_(options.forget_after_frames) {}
 
-void TrackLightCosines::clear() {
-  normals_world_.clear();
-  segment_.reset();
-}
+void TrackLightCosines::clear() { normals_world_.clear(); }
 
 void TrackLightCosines::begin_frame(const SE3& T_world_cam, int segment) {
-  if (segment_ != segment) {
-    normals_world_.clear();
-    segment_ = segment;
-  }
-  ++frame_;
+  normals_world_.begin_frame(segment);
   R_world_cam_ = T_world_cam.rotation_matrix();
-  std::erase_if(normals_world_, [this](const auto& entry) { return frame_ - entry.second.last_frame > options_.forget_after_frames; });
 }
 
 double TrackLightCosines::cosine_from(const Eigen::Vector3d& normal_world, const Eigen::Vector2d& pixel, double light_distance,
@@ -39,22 +31,21 @@ double TrackLightCosines::cosine_from(const Eigen::Vector3d& normal_world, const
 std::optional<double> TrackLightCosines::cosine(std::int64_t track_id, const Eigen::Vector2d& pixel, double light_distance,
                                                 const Eigen::Vector3d& light_offset_cam,
                                                 const std::optional<Eigen::Vector3d>& plane_normal_cam) {
-  auto held = normals_world_.find(track_id);
-  if (held == normals_world_.end()) {
+  const Eigen::Vector3d* held = normals_world_.touch(track_id);
+  if (held == nullptr) {
     if (!plane_normal_cam) return std::nullopt;
-    held = normals_world_.emplace(track_id, HeldNormal{R_world_cam_ * plane_normal_cam->normalized(), frame_}).first;
+    held = &normals_world_.hold(track_id, R_world_cam_ * plane_normal_cam->normalized());
   }
-  held->second.last_frame = frame_;
-  const double c = cosine_from(held->second.normal_world, pixel, light_distance, light_offset_cam);
+  const double c = cosine_from(*held, pixel, light_distance, light_offset_cam);
   if (!(c >= options_.min_cosine)) return std::nullopt;
   return std::min(c, 1.0);
 }
 
 std::optional<double> TrackLightCosines::held_cosine(std::int64_t track_id, const Eigen::Vector2d& pixel, double light_distance,
                                                      const Eigen::Vector3d& light_offset_cam) const {
-  const auto held = normals_world_.find(track_id);
-  if (held == normals_world_.end()) return std::nullopt;
-  const double c = cosine_from(held->second.normal_world, pixel, light_distance, light_offset_cam);
+  const Eigen::Vector3d* held = normals_world_.find(track_id);
+  if (held == nullptr) return std::nullopt;
+  const double c = cosine_from(*held, pixel, light_distance, light_offset_cam);
   if (!std::isfinite(c)) return std::nullopt;
   return c;
 }

@@ -14,12 +14,12 @@
 
 #include <cstdint>
 #include <optional>
-#include <unordered_map>
 
 #include <Eigen/Core>
 
 #include "nirslam/camera/camera_model.hpp"
 #include "nirslam/geometry/se3.hpp"
+#include "nirslam/pipeline/held_per_track.hpp"
 
 namespace nirslam {
 
@@ -59,21 +59,14 @@ public:
   std::size_t tracks() const { return normals_world_.size(); }
 
 private:
-  struct HeldNormal {
-    Eigen::Vector3d normal_world = Eigen::Vector3d::Zero();
-    std::int64_t last_frame = 0;
-  };
-
   // cos(theta) from a world normal in the current frame, NaN where the pixel does not unproject.
   double cosine_from(const Eigen::Vector3d& normal_world, const Eigen::Vector2d& pixel, double light_distance,
                      const Eigen::Vector3d& light_offset_cam) const;
 
   const CameraModel& camera_;
   TrackLightCosinesOptions options_;
-  std::unordered_map<std::int64_t, HeldNormal> normals_world_;
+  HeldPerTrack<Eigen::Vector3d> normals_world_;
   Eigen::Matrix3d R_world_cam_ = Eigen::Matrix3d::Identity();
-  std::int64_t frame_ = 0;
-  std::optional<int> segment_;
 };
 
 }  // namespace nirslam

@@ -15,12 +15,12 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
-#include <unordered_map>
 
 #include <Eigen/Core>
 
 #include "nirslam/camera/camera_model.hpp"
 #include "nirslam/geometry/se3.hpp"
+#include "nirslam/pipeline/held_per_track.hpp"
 
 namespace nirslam {
 
@@ -51,18 +51,12 @@ public:
   std::size_t tracks() const { return points_world_.size(); }
 
 private:
-  struct HeldPoint {
-    Eigen::Vector3d point_world = Eigen::Vector3d::Zero();
-    std::int64_t last_frame = 0;
-  };
+  std::optional<double> light_distance_from(const Eigen::Vector3d& point_world, const Eigen::Vector3d& light_offset_cam) const;
 
   const CameraModel& camera_;
-  TrackLightPointsOptions options_;
-  std::unordered_map<std::int64_t, HeldPoint> points_world_;
+  HeldPerTrack<Eigen::Vector3d> points_world_;
   SE3 T_world_cam_;
   SE3 T_cam_world_;
-  std::int64_t frame_ = 0;
-  std::optional<int> segment_;
 };
 
 }  // namespace nirslam

@@ -9,6 +9,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -16,6 +17,7 @@
 #include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/photometric/illumination_factor.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
+#include "nirslam/pipeline/light_distance_map.hpp"
 #include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/sim/scene.hpp"
 #include "nirslam/sim/simulator.hpp"
@@ -81,11 +83,43 @@ std::optional<double> true_light_cosine(const Simulator& sim, const SE3& T_world
   return hit->normal.dot((light - hit->point).normalized());
 }
 
+// Roughly standard normal (a sum of four uniforms scaled to unit variance), a fixed function of key.
+double gaussian_draw_for_key(std::uint64_t key) {
+  key = (key ^ (key >> 31)) * 0x9E3779B97F4A7C15ull;
+  key ^= key >> 29;
+  double n = 0.0;
+  for (int i = 0; i < 4; ++i, key = key * 6364136223846793005ull + 1442695040888963407ull)
+    n += static_cast<double>(key >> 11) / 9007199254740992.0 - 0.5;
+  return n * std::sqrt(3.0);
+}
+
+// Diagnosis (NIRSLAM_PHOTOMETRIC_HELD_PLACEMENT=sigma): the pipeline's held points
+// (TrackLightPoints) with exact poses, so their own error is all there is: a track's surface
+// point is placed once, on its first pixel's ray at the true distance times exp(sigma n) (n one
+// draw per track), and each later frame gets that point's distance from the true lamp. Its error
+// reaches the ratio only through the camera's travel (about d_err t / (d_0 d_t)), unlike the
+// white noise of NIRSLAM_PHOTOMETRIC_DISTANCE_NOISE. One per pass over the sequence.
+struct HeldPlacementEmulation {
+  double sigma = 0.0;
+  std::unordered_map<std::int64_t, Eigen::Vector3d> points_world;
+  // |log(held / true distance at the pixel)| of each later lookup: how far the tracked pixel
+  // moves off its first surface point (tracker drift, patches across depth edges).
+  std::vector<double> log_errors;
+  void print(const char* pass) {
+    if (log_errors.empty()) return;
+    std::sort(log_errors.begin(), log_errors.end());
+    const auto q = [&](double p) { return log_errors[static_cast<std::size_t>(p * static_cast<double>(log_errors.size() - 1))]; };
+    std::printf("held points (%s): |log(held / true at the pixel)| median %.4f, 90 %% %.4f, 99 %% %.4f of %zu\n", pass, q(0.5), q(0.9),
+                q(0.99), log_errors.size());
+  }
+};
+
 // Ground-truth light distances of the frame last rendered with depth (the simulator knows them;
 // the pipeline hands the odometry's depths the same way).
 // With `cosine` also the light's true incidence cos(theta) from the scene's surface normal at the
 // pixel (a ray cast per tracked pixel), which the factor then carries (illumination_factor.hpp).
-FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& f, bool cosine) {
+FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& f, bool cosine,
+                                     HeldPlacementEmulation* held = nullptr) {
   FrameIllumination illumination;
   illumination.light_distance_m = [&sim, &f](const Eigen::Vector2d& pixel) { return sim.light_distance(f.depth, pixel); };
   // Diagnosis: distances scattered like the odometry's (log-normal, sigma from
@@ -95,15 +129,10 @@ FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& 
     illumination.light_distance_m = [&sim, &f, sigma](const Eigen::Vector2d& pixel) -> std::optional<double> {
       const auto d = sim.light_distance(f.depth, pixel);
       if (!d) return d;
-      std::uint64_t key = static_cast<std::uint64_t>(f.frame.index) * 1000003u +
-                          static_cast<std::uint64_t>(pixel.x() / 16.0) * 1009u + static_cast<std::uint64_t>(pixel.y() / 16.0);
-      key = (key ^ (key >> 31)) * 0x9E3779B97F4A7C15ull;
-      key ^= key >> 29;
-      // Sum of four uniforms: roughly Gaussian, unit variance.
-      double n = 0.0;
-      for (int i = 0; i < 4; ++i, key = key * 6364136223846793005ull + 1442695040888963407ull)
-        n += static_cast<double>(key >> 11) / 9007199254740992.0 - 0.5;
-      return *d * std::exp(sigma * n * std::sqrt(3.0));
+      const std::uint64_t key = static_cast<std::uint64_t>(f.frame.index) * 1000003u +
+                                static_cast<std::uint64_t>(pixel.x() / 16.0) * 1009u + static_cast<std::uint64_t>(pixel.y() / 16.0);
+      const double n = gaussian_draw_for_key(key);
+      return *d * std::exp(sigma * n);
     };
   }
   // Diagnosis: a drifting monocular scale, d exp(-drift * frame / 150) (the odometry's scale in the
@@ -115,6 +144,26 @@ FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& 
       if (!d) return d;
       return *d * factor;
     };
+  }
+  if (held != nullptr) {
+    illumination.track_light_distance_m = [&sim, &f, held](std::int64_t track_id, const Eigen::Vector2d& pixel) -> std::optional<double> {
+      const Eigen::Vector3d light_offset = sim.options().light_offset_cam;
+      if (const auto point = held->points_world.find(track_id); point != held->points_world.end()) {
+        const Eigen::Vector3d p_cam = f.T_world_cam.inverse() * point->second;
+        if (!(p_cam.z() > 0.0)) return std::nullopt;
+        const double distance = (p_cam - light_offset).norm();
+        if (held->sigma == 0.0)
+          if (const auto truth = sim.light_distance(f.depth, pixel)) held->log_errors.push_back(std::abs(std::log(distance / *truth)));
+        return distance;
+      }
+      const auto d = sim.light_distance(f.depth, pixel);
+      const auto ray = sim.camera()->unproject(pixel);
+      if (!d || !ray) return std::nullopt;
+      const double placed = *d * std::exp(held->sigma * gaussian_draw_for_key(static_cast<std::uint64_t>(track_id)));
+      held->points_world.emplace(track_id, f.T_world_cam * point_at_light_distance(ray->normalized(), light_offset, placed));
+      return placed;
+    };
+    illumination.light_distance_m = {};  // as in the pipeline: no per-frame lookup once points are held
   }
   // Diagnosis: no distance for a patch whose back-end grid (+-3 px) crosses a depth edge: a
   // second difference of the depth over this many pixels (along x, y and both diagonals) above 2 %
@@ -202,6 +251,10 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   // Fall-off of the exposure estimator's trust outside the fitted grey range (exposure_estimator.hpp);
   // 1e9 trusts every grey level (as before the weighting).
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_TRUST_WIDTH")) options.exposure.trust_width_grey = std::atof(w);
+  // The exposure estimator's robust mean: Huber width and re-anchoring distance, in robust
+  // standard deviations (exposure_estimator.hpp).
+  if (const char* k = std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_HUBER")) options.exposure.huber_k = std::atof(k);
+  if (const char* k = std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_OUTLIER_SIGMAS")) options.exposure.outlier_sigmas = std::atof(k);
   // The exposure estimator's patches follow the surface's deformation (exposure_estimator.hpp; on
   // by default without the lamp's model; =0 the fixed window).
   if (const char* follow = std::getenv("NIRSLAM_PHOTOMETRIC_FOLLOW_DEFORMATION")) options.exposure.follow_deformation = std::atoi(follow) != 0;
@@ -231,6 +284,12 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
   truth.vignette = sim_options.powers_w.front() > 0.0 ? Simulator(sim_options).halo_factor() : sim_options.vignette;
   double e_min = 1e30, e_max = 0.0, front_end = 0.0;
   int frames = 0;
+  // The held-placement diagnosis (above); one per pass.
+  std::optional<HeldPlacementEmulation> held;
+  if (const char* sigma = std::getenv("NIRSLAM_PHOTOMETRIC_HELD_PLACEMENT")) {
+    held.emplace();
+    held->sigma = std::atof(sigma);
+  }
   {
     OnlinePhotometricCalibration calibration(options);
     Simulator sim(sim_options);
@@ -242,7 +301,9 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
       e_max = std::max(e_max, e);
       out.mean_grey += f->mean_grey;
       if (!use_reported_exposures) frame.exposure_ms.reset();
-      front_end += (light_factor ? calibration.process(frame, true_illumination(sim, *f, light_cosine)) : calibration.process(frame)).front_end_ms;
+      front_end += (light_factor ? calibration.process(frame, true_illumination(sim, *f, light_cosine, held ? &*held : nullptr))
+                                 : calibration.process(frame))
+                       .front_end_ms;
       ++frames;
     }
     calibration.finish();
@@ -268,15 +329,21 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
     if (which != "response" && which != "response-weighted") second.backend.initial_vignette = truth.vignette;
   }
   OnlinePhotometricCalibration exposures(second);
+  if (held) {
+    held->print("calibration");
+    held->points_world.clear();
+    held->log_errors.clear();
+  }
   Simulator sim(sim_options);
   while (auto f = sim.next(light_factor)) {
     Frame frame = f->frame;
     if (!use_reported_exposures) frame.exposure_ms.reset();
     if (light_factor)
-      exposures.process(frame, true_illumination(sim, *f, light_cosine));
+      exposures.process(frame, true_illumination(sim, *f, light_cosine, held ? &*held : nullptr));
     else
       exposures.process(frame);
   }
+  if (held) held->print("exposure pass");
   if (std::getenv("NIRSLAM_PHOTOMETRIC_EXPOSURE_TRACE") != nullptr) {  // diagnosis: estimate / truth per frame
     std::printf("estimate/truth (first = 1), every 5th frame:");
     std::optional<double> first;

@@ -10,8 +10,14 @@ of the two inverse responses (pcalib.txt), each scaled to 255 at grey 255 (the i
 is a normalisation, not data); the halo factor as the mean / max |V_est(x) - V_lens(x) B(x)| over
 a grid of every 8th pixel, V_est from calibration.json's vignette coefficients, V_lens the
 simulator's lens vignette and B = cos(alpha)^m its lamp's beam about the optical axis (the
-lamp's 5 cm offset from the lens is left out: under 1 degree beyond 3 m). Python's standard
-library only.
+lamp's 5 cm offset from the lens is left out: under 1 degree beyond 3 m); the exposures as the
+median relative error of the online estimates (calibration.json's `exposures`) against the
+reported ones, after the one factor that aligns them best in log (the median ratio), over the
+frames the front end estimated from its tracks. The frames it restarted at the reported value
+(every back-end update restarts the chain) are counted, not compared: their error is 0 by
+construction, and with them restarted every few frames the figure is a short chain's, not the
+long chain of the co-lit table's exposure pass (PhotometricAccuracy.CoLitTable). Python's
+standard library only.
 """
 import glob
 import json
@@ -30,6 +36,29 @@ def read_inverse_response(path):
     if len(values) != 256:
         sys.exit(f"{path}: expected 256 values, got {len(values)}")
     return [255.0 * x / values[-1] for x in values]
+
+
+ESTIMATED, RESTARTED = 0, 2  # ExposureStatus in exposure_estimator.hpp
+
+
+def median(values):
+    values = sorted(values)
+    return values[len(values) // 2]
+
+
+def exposure_errors(calibration):
+    """(median |e_est / (s e_reported) - 1| in per cent over the estimated frames, s the median
+    ratio, or None; the number of frames restarted at the reported value)."""
+    ratios, restarted = [], 0
+    for sample in calibration.get("exposures", []):
+        estimated, reported = sample.get("exposure_estimated"), sample.get("exposure_reported")
+        restarted += sample.get("status") == RESTARTED
+        if sample.get("status") == ESTIMATED and estimated and reported and estimated > 0 and reported > 0:
+            ratios.append(estimated / reported)
+    if not ratios:
+        return None, restarted
+    scale = median(ratios)
+    return 100.0 * median([abs(r / scale - 1.0) for r in ratios]), restarted
 
 
 def main():
@@ -59,16 +88,21 @@ def main():
         est = read_inverse_response(os.path.join(run, "calibration", "pcalib.txt"))
         tru = read_inverse_response(os.path.join(folders[0], "pcalib.txt"))
         response = [abs(a - b) for a, b in zip(est, tru)]
+        exposure, restarted = exposure_errors(estimate)
         rows.append((sequence, sum(response) / 256, max(response), sum(halo) / len(halo), max(halo),
-                     estimate.get("lamp_beam_exponent")))
+                     estimate.get("lamp_beam_exponent"), exposure, restarted))
     if not rows:
         sys.exit(f"no runs in {bench}/runs/*/{mode}")
-    print("| Sequence | response mean / max [grey levels] | halo factor mean / max | beam exponent m |")
-    print("|---|---:|---:|---:|")
-    for s, rm, rx, hm, hx, m in rows:
-        print(f"| {s} | {rm:.2f} / {rx:.1f} | {hm:.4f} / {hx:.3f} | {'-' if m is None else f'{m:.2f}'} |")
+    print("| Sequence | response mean / max [grey levels] | halo factor mean / max | beam exponent m "
+          "| exposure median [%] (frames restarted) |")
+    print("|---|---:|---:|---:|---:|")
+    for s, rm, rx, hm, hx, m, e, restarted in rows:
+        print(f"| {s} | {rm:.2f} / {rx:.1f} | {hm:.4f} / {hx:.3f} | {'-' if m is None else f'{m:.2f}'} "
+              f"| {'-' if e is None else f'{e:.2f}'} ({restarted}) |")
     n = len(rows)
-    print(f"| mean | {sum(r[1] for r in rows) / n:.2f} | {sum(r[3] for r in rows) / n:.4f} | |")
+    exposures = [r[6] for r in rows if r[6] is not None]
+    exposure_mean = f"{sum(exposures) / len(exposures):.2f}" if exposures else "-"
+    print(f"| mean | {sum(r[1] for r in rows) / n:.2f} | {sum(r[3] for r in rows) / n:.4f} | | {exposure_mean} |")
     print(f"\nresponse mean < 2 on {sum(r[1] < 2 for r in rows)} of {n}, halo mean < 0.005 on "
           f"{sum(r[3] < 0.005 for r in rows)} of {n}")
 

@@ -69,6 +69,7 @@ void ExposureEstimator::set_model(const ResponseModel& response, const VignetteM
 
 void ExposureEstimator::reset() {
   anchors_.clear();
+  previous_.valid = false;
   model_changed_ = false;
   illumination_modelled_ = false;
   log_exposure_.reset();
@@ -151,8 +152,34 @@ void ExposureEstimator::anchor_all(const TrackedFrame& tracked, double log_expos
   }
 }
 
+int ExposureEstimator::sample_patches(const TrackedFrame& tracked) {
+  irradiance_.resize(tracked.tracks.size());
+  weight_.resize(tracked.tracks.size());
+  irradiance_valid_.assign(tracked.tracks.size(), 0);
+  int usable = 0;
+  if (!tracked.intensity.empty() && tracked.intensity.type() == CV_32FC1)
+    for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
+      irradiance_valid_[i] = irradiance_patch(tracked.intensity, tracked.tracks[i].position, Eigen::Matrix2d::Identity(),
+                                             irradiance_[i], weight_[i]);
+      usable += irradiance_valid_[i];
+    }
+  return usable;
+}
+
+void ExposureEstimator::remember_frame(const TrackedFrame& tracked, const std::vector<double>* log_illumination) {
+  cv::Mat intensity = std::move(previous_.tracked.intensity);  // its buffer, reused
+  previous_.tracked = tracked;
+  tracked.intensity.copyTo(intensity);
+  previous_.tracked.intensity = intensity;
+  previous_.lit = log_illumination != nullptr;
+  if (log_illumination != nullptr) previous_.log_illumination = *log_illumination;
+  previous_.log_exposure = *log_exposure_;
+  previous_.valid = true;
+}
+
 const ExposureEstimate& ExposureEstimator::keep(const TrackedFrame& tracked, ExposureStatus status,
                                                 std::string reason) {
+  previous_.valid = false;  // its estimate is not its own
   last_.frame_index = tracked.frame_index;
   last_.status = status;
   last_.reason = std::move(reason);
@@ -188,17 +215,18 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
   const double reported = tracked.exposure_ms.value_or(1.0) * tracked.gain.value_or(1.0);
   const bool has_reported = tracked.exposure_ms.has_value() && std::isfinite(reported) && reported > 0.0;
 
+  // After a model change without a reported exposure to restart at, the last estimated frame's
+  // tracks anchored again under the new model (see set_model).
+  bool bridged = false;
+  if (model_changed_ && !has_reported && anchors_.empty() && log_exposure_ && previous_.valid &&
+      previous_.lit == (log_illumination != nullptr)) {
+    sample_patches(previous_.tracked);
+    anchor_all(previous_.tracked, previous_.log_exposure, false, previous_.lit ? &previous_.log_illumination : nullptr);
+    bridged = !anchors_.empty();
+  }
+
   // Drop anchors of tracks the tracker lost; collect each surviving track's candidate log e_t.
-  irradiance_.resize(tracked.tracks.size());
-  weight_.resize(tracked.tracks.size());
-  irradiance_valid_.assign(tracked.tracks.size(), 0);
-  int usable = 0;
-  if (!tracked.intensity.empty() && tracked.intensity.type() == CV_32FC1)
-    for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
-      irradiance_valid_[i] = irradiance_patch(tracked.intensity, tracked.tracks[i].position, Eigen::Matrix2d::Identity(),
-                                             irradiance_[i], weight_[i]);
-      usable += irradiance_valid_[i];
-    }
+  const int usable = sample_patches(tracked);
   if (options_.follow_deformation && !tracked.deformation_estimated)
     throw std::invalid_argument("exposure estimator: follow_deformation needs the tracks' deformation "
                                 "(PhotometricTrackerOptions::estimate_deformation)");
@@ -238,15 +266,21 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
   }
   anchors_.swap(alive);
 
-  // Under the lamp a track counts only once it has a light factor; when too few anchored tracks
-  // have one now (patches whose distances came and went) but enough tracks do, restart the chain
-  // on them, as when all anchored tracks are lost: else no new track is ever anchored (anchoring
-  // happens after an estimate) and the estimator stays without one for the rest of the sequence.
-  if (log_illumination != nullptr && log_exposure_ && static_cast<int>(candidates_.size()) < options_.min_tracks) {
-    int lit = 0;
+  std::string few_anchored;
+  // When too few anchored tracks give a candidate now but enough tracks could (anchors clipped in
+  // a bright first frame, most anchored tracks lost while new ones came; under the lamp, patches
+  // whose distances came and went: a track counts only with a light factor), restart the chain on
+  // them, as when all anchored tracks are lost: else no new track is ever anchored (anchoring
+  // happens after an estimate) and the last estimate is kept until the last anchored track dies.
+  if (log_exposure_ && static_cast<int>(candidates_.size()) < options_.min_tracks) {
+    int could = 0;
     for (std::size_t i = 0; i < tracked.tracks.size(); ++i)
-      lit += irradiance_valid_[i] && std::isfinite((*log_illumination)[i]);
-    if (lit >= options_.min_tracks) anchors_.clear();
+      could += irradiance_valid_[i] && (log_illumination == nullptr || std::isfinite((*log_illumination)[i]));
+    if (could >= options_.min_tracks) {
+      anchors_.clear();
+      bridged = false;
+      if (!model_changed_) few_anchored = "too few anchored tracks usable (" + std::to_string(candidates_.size()) + ")";
+    }
   }
   if (!log_exposure_ || anchors_.empty()) {
     if (usable < options_.min_tracks)
@@ -264,11 +298,14 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
     last_.log_exposure_ratio = *log_exposure_ - previous;
     last_.used_tracks = usable;
     last_.status = first ? ExposureStatus::FirstFrame : ExposureStatus::Restarted;
-    const std::string why = model_changed_ ? "response/vignette or light model changed" : "all anchored tracks lost";
+    const std::string why = model_changed_          ? std::string("response/vignette or light model changed")
+                            : !few_anchored.empty() ? few_anchored
+                                                    : std::string("all anchored tracks lost");
     last_.reason = first ? (has_reported ? "first frame: exposure x gain as reported" : "first frame: exposure set to 1")
                          : (has_reported ? why + ": restarted at the reported exposure x gain"
                                          : why + ": restarted at the last estimate (scale may jump)");
     model_changed_ = false;
+    remember_frame(tracked, log_illumination);
     return last_;
   }
 
@@ -319,6 +356,11 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
   last_.inlier_tracks = inliers;
   last_.status = ExposureStatus::Estimated;
   last_.reason.clear();
+  if (bridged) {
+    last_.reason = "response/vignette or light model changed: continued from the last estimated frame under the new model";
+    model_changed_ = false;
+  }
+  remember_frame(tracked, log_illumination);
   return last_;
 }
 

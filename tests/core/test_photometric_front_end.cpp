@@ -371,6 +371,10 @@ TEST(ExposureEstimator, TrustedGreyRangeFollowsTheTrustedPatches) {
   EXPECT_LT(dark, 1.7);
 }
 
+// Texture values are 0.1-0.45 of full scale (about 0.28 +- 0.045): at 3.5x about half of the
+// pixels saturate, under the 90 % that makes a frame say nothing.
+constexpr double kBrightFirstFrameGain = 3.5;
+
 class ExposureDegenerate : public ::testing::Test {
 protected:
   ExposureDegenerate() : estimator_(ResponseModel::from_preset(ResponsePreset::Gamma), VignetteModel{}) {}
@@ -434,18 +438,60 @@ TEST_F(ExposureDegenerate, BlackSaturatedAndFlatFramesKeepTheLastEstimate) {
   EXPECT_NE(r.reason.find("restarted"), std::string::npos);
 }
 
-TEST_F(ExposureDegenerate, NewModelRestartsTheChainAndSaysSo) {
+// A new model from the back end: the anchors (irradiance under the old model) are dropped and
+// the chain goes on from the last estimated frame, sampled again under the new model, so the
+// frame's own change of exposure is measured (restarting at the last estimate took it for none).
+TEST_F(ExposureDegenerate, NewModelContinuesFromTheLastEstimatedFrame) {
   feed(shifted(base_, Eigen::Vector2d(0.0, 0.0), 1.0), 0, 8.0);
   const double good = *feed(shifted(base_, Eigen::Vector2d(0.4, 0.2), 1.0), 1, std::nullopt).exposure;
   estimator_.set_model(ResponseModel::from_preset(ResponsePreset::Linear), VignetteModel{});
+  // Linear response: 1.3x brighter is 1.3x exposure.
   const ExposureEstimate& e = feed(shifted(base_, Eigen::Vector2d(0.8, 0.4), 1.3), 2, std::nullopt);
-  EXPECT_EQ(e.status, ExposureStatus::Restarted);
-  EXPECT_NE(e.reason.find("changed"), std::string::npos);
-  EXPECT_DOUBLE_EQ(*e.exposure, good);
-  // The chain goes on with the new model: linear response, so 1.3x brighter is 1.3x exposure.
+  ASSERT_EQ(e.status, ExposureStatus::Estimated) << e.reason;
+  EXPECT_NE(e.reason.find("changed"), std::string::npos) << e.reason;
+  EXPECT_NEAR(*e.exposure / good, 1.3, 0.02);
   const ExposureEstimate& next = feed(shifted(base_, Eigen::Vector2d(1.2, 0.6), 1.3 * 1.3), 3, std::nullopt);
   ASSERT_EQ(next.status, ExposureStatus::Estimated) << next.reason;
-  EXPECT_NEAR(*next.exposure / good, 1.3, 0.02);
+  EXPECT_TRUE(next.reason.empty()) << next.reason;
+  EXPECT_NEAR(*next.exposure / good, 1.69, 0.04);
+}
+
+// With no estimated frame to continue from (the last one was black), a new model restarts the
+// chain at the last estimate and says why.
+TEST_F(ExposureDegenerate, NewModelAfterAKeptFrameRestartsTheChain) {
+  feed(shifted(base_, Eigen::Vector2d(0.0, 0.0), 1.0), 0, 8.0);
+  const double good = *feed(shifted(base_, Eigen::Vector2d(0.4, 0.2), 1.0), 1, std::nullopt).exposure;
+  EXPECT_EQ(feed(cv::Mat::zeros(base_.size(), CV_16U), 2, std::nullopt).status, ExposureStatus::BlackFrame);
+  estimator_.set_model(ResponseModel::from_preset(ResponsePreset::Linear), VignetteModel{});
+  const ExposureEstimate& e = feed(shifted(base_, Eigen::Vector2d(0.8, 0.4), 1.3), 3, std::nullopt);
+  EXPECT_EQ(e.status, ExposureStatus::Restarted);
+  EXPECT_NE(e.reason.find("changed"), std::string::npos) << e.reason;
+  EXPECT_DOUBLE_EQ(*e.exposure, good);
+}
+
+// A first frame so bright that the anchored patches are clipped: the anchored tracks give too
+// few ratios while the next frames' patches are fine. The chain restarts on them (here at the
+// reported exposure) instead of keeping the first frame's value until the last anchored track dies.
+TEST_F(ExposureDegenerate, AnchorsClippedInABrightFirstFrameRestartTheChain) {
+  // A patch needs 70 of its 81 pixels unclipped here, so that a first frame with about half of
+  // its pixels saturated leaves (almost) no usable anchor.
+  ExposureEstimatorOptions options;
+  options.min_valid_pixels = 70;
+  ExposureEstimator estimator(ResponseModel::from_preset(ResponsePreset::Gamma), VignetteModel{}, options);
+  const auto feed_own = [&](double gain, std::int64_t index, std::optional<double> exposure_ms) -> const ExposureEstimate& {
+    return estimator.update(tracker_.process(make_frame(shifted(base_, Eigen::Vector2d(0.3 * static_cast<double>(index), 0.1), gain), 16, index, exposure_ms)));
+  };
+  const ExposureEstimate& first = feed_own(kBrightFirstFrameGain, 0, 20.0);
+  ASSERT_EQ(first.status, ExposureStatus::FirstFrame) << first.reason;
+  const ExposureEstimate& restarted = feed_own(1.0, 1, 5.0);
+  EXPECT_EQ(restarted.status, ExposureStatus::Restarted) << restarted.reason;
+  EXPECT_NE(restarted.reason.find("too few anchored"), std::string::npos) << restarted.reason;
+  EXPECT_DOUBLE_EQ(*restarted.exposure, 5.0);
+  const ExposureEstimate& next = feed_own(1.2, 2, std::nullopt);
+  ASSERT_EQ(next.status, ExposureStatus::Estimated) << next.reason;
+  EXPECT_GT(next.used_tracks, 12);
+  // The gamma preset's inverse is close to y^2.2: 1.2x brighter is about 1.5x exposure.
+  EXPECT_NEAR(*next.exposure / 5.0, std::pow(1.2, 2.2), 0.1);
 }
 
 // Under the lamp a track's light factor can be unknown in one frame and known in the next (the

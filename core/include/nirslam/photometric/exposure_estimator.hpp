@@ -116,9 +116,15 @@ class ExposureEstimator {
 public:
   ExposureEstimator(const ResponseModel& response, const VignetteModel& vignette, ExposureEstimatorOptions options = {});
 
-  // New response / vignette from the back end. Anchors hold irradiance under the old model, so
-  // they are dropped and the next frame restarts the chain at the last estimate (status
-  // Restarted, reason says so): a ratio with the old model on one end would be biased.
+  // New response / vignette from the back end. Anchors hold irradiance under the old model (a
+  // ratio with the old model on one end would be biased), so they are dropped. A next frame with
+  // a reported exposure restarts the chain there (status Restarted). Without one, its tracks are
+  // compared with the last frame that had an estimate of its own, sampled again under the new
+  // model, at that frame's estimate: the chain goes on through one frame-to-frame step (status
+  // Estimated, the reason says so). Restarting at the last estimate instead took each such
+  // frame's exposure change for none, and the back end changes the model every few frames.
+  // Where that frame is not there (kept, or with and without light factors across the change),
+  // the chain restarts at the last estimate as when all anchored tracks are lost.
   // `trusted_grey`: the grey range (0..255) the response was fitted over (see above); without it
   // every grey level has weight 1.
   void set_model(const ResponseModel& response, const VignetteModel& vignette,
@@ -159,6 +165,10 @@ private:
                             const PatchSamples& anchor_weight, double& log_ratio, double& trust) const;
   void anchor_all(const TrackedFrame& tracked, double log_exposure, bool only_new,
                   const std::vector<double>* log_illumination);
+  // Patches of every track of `tracked` under the current model (irradiance_, weight_, irradiance_valid_).
+  int sample_patches(const TrackedFrame& tracked);
+  // Keeps this frame (its estimate is log_exposure_) for a model change before the next one.
+  void remember_frame(const TrackedFrame& tracked, const std::vector<double>* log_illumination);
   const ExposureEstimate& keep(const TrackedFrame& tracked, ExposureStatus status, std::string reason);
 
   ExposureEstimatorOptions options_;
@@ -176,6 +186,16 @@ private:
   std::vector<char> irradiance_valid_;
   bool model_changed_ = false;
   bool illumination_modelled_ = false;  // the last frame came with light factors
+  // The last frame with an estimate of its own (see set_model); its intensity is a copy, since
+  // the tracker reuses its buffer.
+  struct EstimatedFrame {
+    TrackedFrame tracked;
+    std::vector<double> log_illumination;
+    bool lit = false;
+    double log_exposure = 0.0;
+    bool valid = false;
+  };
+  EstimatedFrame previous_;
 };
 
 }  // namespace nirslam

@@ -356,10 +356,9 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
   last_.inlier_tracks = inliers;
   last_.status = ExposureStatus::Estimated;
   last_.reason.clear();
-  if (bridged) {
+  if (bridged)
     last_.reason = "response/vignette or light model changed: continued from the last estimated frame under the new model";
-    model_changed_ = false;
-  }
+  model_changed_ = false;  // the chain goes on under this model
   remember_frame(tracked, log_illumination);
   return last_;
 }

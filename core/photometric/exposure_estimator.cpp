@@ -64,12 +64,11 @@ void ExposureEstimator::set_model(const ResponseModel& response, const VignetteM
   }
   vignette_ = vignette;
   if (!anchors_.empty()) model_changed_ = true;
-  anchors_.clear();
+  for (auto& [id, anchor] : anchors_) resample(anchor);
 }
 
 void ExposureEstimator::reset() {
   anchors_.clear();
-  previous_.valid = false;
   model_changed_ = false;
   illumination_modelled_ = false;
   log_exposure_.reset();
@@ -88,9 +87,6 @@ bool ExposureEstimator::irradiance_patch(const cv::Mat& intensity, const Eigen::
   if (!(position.x() - reach.x() >= 0.0 && position.y() - reach.y() >= 0.0 &&
         position.x() + reach.x() < intensity.cols - 1 && position.y() + reach.y() < intensity.rows - 1))
     return false;
-  const float lo = static_cast<float>(options_.black_level);
-  const float hi = static_cast<float>(options_.saturation_level);
-  const auto valid = [&](float y) { return y > lo && y < hi; };
   for (int i = 0; i < kPatchSide; ++i)
     for (int j = 0; j < kPatchSide; ++j) {
       const Eigen::Vector2d sample = position + deformation * Eigen::Vector2d(j - kPatchRadius, i - kPatchRadius);
@@ -100,20 +96,39 @@ bool ExposureEstimator::irradiance_patch(const cv::Mat& intensity, const Eigen::
       const double fx = x - x0, fy = y - y0;
       const float* row0 = intensity.ptr<float>(y0) + x0;
       const float* row1 = intensity.ptr<float>(y0 + 1) + x0;
-      float& out = irradiance[i * kPatchSide + j];
-      if (!(valid(row0[0]) && valid(row0[1]) && valid(row1[0]) && valid(row1[1]))) {
-        out = -1.0f;
-        weight[i * kPatchSide + j] = 0.0f;
-        continue;
-      }
-      // The least trusted of the four grey values the sample is interpolated from.
-      weight[i * kPatchSide + j] = static_cast<float>(
-          std::min({grey_weight(row0[0]), grey_weight(row0[1]), grey_weight(row1[0]), grey_weight(row1[1])}));
-      const double g = (1.0 - fy) * ((1.0 - fx) * inverse_response(row0[0]) + fx * inverse_response(row0[1])) +
-                       fy * ((1.0 - fx) * inverse_response(row1[0]) + fx * inverse_response(row1[1]));
-      out = static_cast<float>(g / vignette_(VignetteModel::radius(x, y, intensity.cols, intensity.rows)));
+      irradiance_sample(row0[0], row0[1], row1[0], row1[1], fx, fy, x, y, intensity.cols, intensity.rows,
+                        irradiance[i * kPatchSide + j], weight[i * kPatchSide + j]);
     }
   return true;
+}
+
+void ExposureEstimator::irradiance_sample(float c00, float c01, float c10, float c11, double fx, double fy, double x,
+                                          double y, int cols, int rows, float& irradiance, float& weight) const {
+  const float lo = static_cast<float>(options_.black_level);
+  const float hi = static_cast<float>(options_.saturation_level);
+  const auto valid = [&](float v) { return v > lo && v < hi; };
+  if (!(valid(c00) && valid(c01) && valid(c10) && valid(c11))) {
+    irradiance = -1.0f;
+    weight = 0.0f;
+    return;
+  }
+  // The least trusted of the four grey values the sample is interpolated from.
+  weight = static_cast<float>(std::min({grey_weight(c00), grey_weight(c01), grey_weight(c10), grey_weight(c11)}));
+  const double g = (1.0 - fy) * ((1.0 - fx) * inverse_response(c00) + fx * inverse_response(c01)) +
+                   fy * ((1.0 - fx) * inverse_response(c10) + fx * inverse_response(c11));
+  irradiance = static_cast<float>(g / vignette_(VignetteModel::radius(x, y, cols, rows)));
+}
+
+void ExposureEstimator::resample(Anchor& anchor) const {
+  constexpr int kWindowSide = kPatchSide + 1;
+  const GreyWindow& w = anchor.grey;
+  for (int i = 0; i < kPatchSide; ++i)
+    for (int j = 0; j < kPatchSide; ++j) {
+      const int k = i * kWindowSide + j;
+      irradiance_sample(w.grey[k], w.grey[k + 1], w.grey[k + kWindowSide], w.grey[k + kWindowSide + 1], w.fx, w.fy,
+                        w.position.x() + (j - kPatchRadius), w.position.y() + (i - kPatchRadius), image_cols_, image_rows_,
+                        anchor.irradiance[i * kPatchSide + j], anchor.weight[i * kPatchSide + j]);
+    }
 }
 
 bool ExposureEstimator::log_irradiance_ratio(const PatchSamples& now, const PatchSamples& now_weight,
@@ -145,41 +160,26 @@ void ExposureEstimator::anchor_all(const TrackedFrame& tracked, double log_expos
     // anchored now, every later ratio to this anchor would be unknown for the track's whole life.
     if (log_illumination != nullptr && !std::isfinite((*log_illumination)[i])) continue;
     Anchor& anchor = anchors_[id];
-    anchor = Anchor{irradiance_[i], weight_[i], log_exposure, log_illumination ? (*log_illumination)[i] : 0.0,
+    anchor = Anchor{irradiance_[i], weight_[i], GreyWindow{}, log_exposure, log_illumination ? (*log_illumination)[i] : 0.0,
                     Eigen::Matrix2d::Identity(), tracked.tracks[i].surface};
+    // The fixed window's samples share their sub-pixel fractions (irradiance_patch; the patch fits,
+    // so the window does).
+    const Eigen::Vector2d& position = tracked.tracks[i].position;
+    const int x0 = static_cast<int>(position.x()) - kPatchRadius, y0 = static_cast<int>(position.y()) - kPatchRadius;
+    for (int r = 0; r <= kPatchSide; ++r) {
+      const float* row = tracked.intensity.ptr<float>(y0 + r) + x0;
+      for (int c = 0; c <= kPatchSide; ++c) anchor.grey.grey[r * (kPatchSide + 1) + c] = row[c];
+    }
+    anchor.grey.fx = position.x() - static_cast<int>(position.x());
+    anchor.grey.fy = position.y() - static_cast<int>(position.y());
+    anchor.grey.position = position;
     // The anchor's window is the fixed one; later patches are mapped back to it (see the header).
     if (options_.follow_deformation) anchor.deformation_inverse = tracked.tracks[i].deformation.inverse();
   }
 }
 
-int ExposureEstimator::sample_patches(const TrackedFrame& tracked) {
-  irradiance_.resize(tracked.tracks.size());
-  weight_.resize(tracked.tracks.size());
-  irradiance_valid_.assign(tracked.tracks.size(), 0);
-  int usable = 0;
-  if (!tracked.intensity.empty() && tracked.intensity.type() == CV_32FC1)
-    for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
-      irradiance_valid_[i] = irradiance_patch(tracked.intensity, tracked.tracks[i].position, Eigen::Matrix2d::Identity(),
-                                             irradiance_[i], weight_[i]);
-      usable += irradiance_valid_[i];
-    }
-  return usable;
-}
-
-void ExposureEstimator::remember_frame(const TrackedFrame& tracked, const std::vector<double>* log_illumination) {
-  cv::Mat intensity = std::move(previous_.tracked.intensity);  // its buffer, reused
-  previous_.tracked = tracked;
-  tracked.intensity.copyTo(intensity);
-  previous_.tracked.intensity = intensity;
-  previous_.lit = log_illumination != nullptr;
-  if (log_illumination != nullptr) previous_.log_illumination = *log_illumination;
-  previous_.log_exposure = *log_exposure_;
-  previous_.valid = true;
-}
-
 const ExposureEstimate& ExposureEstimator::keep(const TrackedFrame& tracked, ExposureStatus status,
                                                 std::string reason) {
-  previous_.valid = false;  // its estimate is not its own
   last_.frame_index = tracked.frame_index;
   last_.status = status;
   last_.reason = std::move(reason);
@@ -215,18 +215,24 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
   const double reported = tracked.exposure_ms.value_or(1.0) * tracked.gain.value_or(1.0);
   const bool has_reported = tracked.exposure_ms.has_value() && std::isfinite(reported) && reported > 0.0;
 
-  // After a model change without a reported exposure to restart at, the last estimated frame's
-  // tracks anchored again under the new model (see set_model).
-  bool bridged = false;
-  if (model_changed_ && !has_reported && anchors_.empty() && log_exposure_ && previous_.valid &&
-      previous_.lit == (log_illumination != nullptr)) {
-    sample_patches(previous_.tracked);
-    anchor_all(previous_.tracked, previous_.log_exposure, false, previous_.lit ? &previous_.log_illumination : nullptr);
-    bridged = !anchors_.empty();
+  // A new model with a reported exposure: restart the chain there (see set_model).
+  if (model_changed_ && has_reported) anchors_.clear();
+  if (!tracked.intensity.empty()) {
+    image_cols_ = tracked.intensity.cols;
+    image_rows_ = tracked.intensity.rows;
   }
 
   // Drop anchors of tracks the tracker lost; collect each surviving track's candidate log e_t.
-  const int usable = sample_patches(tracked);
+  irradiance_.resize(tracked.tracks.size());
+  weight_.resize(tracked.tracks.size());
+  irradiance_valid_.assign(tracked.tracks.size(), 0);
+  int usable = 0;
+  if (!tracked.intensity.empty() && tracked.intensity.type() == CV_32FC1)
+    for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
+      irradiance_valid_[i] = irradiance_patch(tracked.intensity, tracked.tracks[i].position, Eigen::Matrix2d::Identity(),
+                                             irradiance_[i], weight_[i]);
+      usable += irradiance_valid_[i];
+    }
   if (options_.follow_deformation && !tracked.deformation_estimated)
     throw std::invalid_argument("exposure estimator: follow_deformation needs the tracks' deformation "
                                 "(PhotometricTrackerOptions::estimate_deformation)");
@@ -278,7 +284,6 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
       could += irradiance_valid_[i] && (log_illumination == nullptr || std::isfinite((*log_illumination)[i]));
     if (could >= options_.min_tracks) {
       anchors_.clear();
-      bridged = false;
       if (!model_changed_) few_anchored = "too few anchored tracks usable (" + std::to_string(candidates_.size()) + ")";
     }
   }
@@ -305,7 +310,6 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
                          : (has_reported ? why + ": restarted at the reported exposure x gain"
                                          : why + ": restarted at the last estimate (scale may jump)");
     model_changed_ = false;
-    remember_frame(tracked, log_illumination);
     return last_;
   }
 
@@ -356,10 +360,8 @@ const ExposureEstimate& ExposureEstimator::update(const TrackedFrame& tracked, c
   last_.inlier_tracks = inliers;
   last_.status = ExposureStatus::Estimated;
   last_.reason.clear();
-  if (bridged)
-    last_.reason = "response/vignette or light model changed: continued from the last estimated frame under the new model";
-  model_changed_ = false;  // the chain goes on under this model
-  remember_frame(tracked, log_illumination);
+  if (model_changed_) last_.reason = "response/vignette or light model changed: anchors sampled again under it";
+  model_changed_ = false;
   return last_;
 }
 

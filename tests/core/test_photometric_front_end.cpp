@@ -438,10 +438,10 @@ TEST_F(ExposureDegenerate, BlackSaturatedAndFlatFramesKeepTheLastEstimate) {
   EXPECT_NE(r.reason.find("restarted"), std::string::npos);
 }
 
-// A new model from the back end: the anchors (irradiance under the old model) are dropped and
-// the chain goes on from the last estimated frame, sampled again under the new model, so the
-// frame's own change of exposure is measured (restarting at the last estimate took it for none).
-TEST_F(ExposureDegenerate, NewModelContinuesFromTheLastEstimatedFrame) {
+// A new model from the back end: every anchor's patch is sampled again under it from the grey
+// values it keeps, and the chain goes on, so the next frame's own change of exposure is measured
+// (dropping the anchors and restarting at the last estimate took it for none).
+TEST_F(ExposureDegenerate, NewModelSamplesTheAnchorsAgain) {
   feed(shifted(base_, Eigen::Vector2d(0.0, 0.0), 1.0), 0, 8.0);
   const double good = *feed(shifted(base_, Eigen::Vector2d(0.4, 0.2), 1.0), 1, std::nullopt).exposure;
   estimator_.set_model(ResponseModel::from_preset(ResponsePreset::Linear), VignetteModel{});
@@ -456,17 +456,36 @@ TEST_F(ExposureDegenerate, NewModelContinuesFromTheLastEstimatedFrame) {
   EXPECT_NEAR(*next.exposure / good, 1.69, 0.04);
 }
 
-// With no estimated frame to continue from (the last one was black), a new model restarts the
-// chain at the last estimate and says why.
-TEST_F(ExposureDegenerate, NewModelAfterAKeptFrameRestartsTheChain) {
+// The anchors sampled again equal anchors taken afresh under the new model: the same frames fed
+// to an estimator that had the new model from the start give the same estimate.
+TEST_F(ExposureDegenerate, AnchorsSampledAgainMatchAnchorsTakenUnderTheNewModel) {
+  const VignetteModel vignette{Eigen::Vector3d(-0.3, 0.05, -0.02)};
+  ExposureEstimator fresh(ResponseModel::from_preset(ResponsePreset::Log), vignette);
+  PhotometricTracker fresh_tracker;
+  const auto frame = [&](std::int64_t index, double gain, std::optional<double> exposure) {
+    return make_frame(shifted(base_, Eigen::Vector2d(0.35 * static_cast<double>(index), 0.2), gain), 16, index, exposure);
+  };
+  feed(shifted(base_, Eigen::Vector2d(0.0, 0.2), 1.0), 0, 8.0);
+  fresh.update(fresh_tracker.process(frame(0, 1.0, 8.0)));
+  estimator_.set_model(ResponseModel::from_preset(ResponsePreset::Log), vignette);
+  const ExposureEstimate& changed = estimator_.update(tracker_.process(frame(1, 1.2, std::nullopt)));
+  const ExposureEstimate& from_start = fresh.update(fresh_tracker.process(frame(1, 1.2, std::nullopt)));
+  ASSERT_EQ(changed.status, ExposureStatus::Estimated) << changed.reason;
+  ASSERT_EQ(from_start.status, ExposureStatus::Estimated) << from_start.reason;
+  EXPECT_NEAR(*changed.exposure, *from_start.exposure, 1e-9 * *from_start.exposure);
+  EXPECT_GT(*changed.exposure, 8.0 * 1.2);  // the log curve's inverse is steeper than linear
+}
+
+// A new model and a reported exposure: the chain restarts there, as the back end's keyframes
+// hold the reported values.
+TEST_F(ExposureDegenerate, NewModelWithAReportedExposureRestartsThere) {
   feed(shifted(base_, Eigen::Vector2d(0.0, 0.0), 1.0), 0, 8.0);
-  const double good = *feed(shifted(base_, Eigen::Vector2d(0.4, 0.2), 1.0), 1, std::nullopt).exposure;
-  EXPECT_EQ(feed(cv::Mat::zeros(base_.size(), CV_16U), 2, std::nullopt).status, ExposureStatus::BlackFrame);
+  feed(shifted(base_, Eigen::Vector2d(0.4, 0.2), 1.0), 1, std::nullopt);
   estimator_.set_model(ResponseModel::from_preset(ResponsePreset::Linear), VignetteModel{});
-  const ExposureEstimate& e = feed(shifted(base_, Eigen::Vector2d(0.8, 0.4), 1.3), 3, std::nullopt);
+  const ExposureEstimate& e = feed(shifted(base_, Eigen::Vector2d(0.8, 0.4), 1.3), 2, 9.0);
   EXPECT_EQ(e.status, ExposureStatus::Restarted);
   EXPECT_NE(e.reason.find("changed"), std::string::npos) << e.reason;
-  EXPECT_DOUBLE_EQ(*e.exposure, good);
+  EXPECT_DOUBLE_EQ(*e.exposure, 9.0);
 }
 
 // A first frame so bright that the anchored patches are clipped: the anchored tracks give too

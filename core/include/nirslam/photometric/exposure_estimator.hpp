@@ -116,15 +116,13 @@ class ExposureEstimator {
 public:
   ExposureEstimator(const ResponseModel& response, const VignetteModel& vignette, ExposureEstimatorOptions options = {});
 
-  // New response / vignette from the back end. Anchors hold irradiance under the old model (a
-  // ratio with the old model on one end would be biased), so they are dropped. A next frame with
-  // a reported exposure restarts the chain there (status Restarted). Without one, its tracks are
-  // compared with the last frame that had an estimate of its own, sampled again under the new
-  // model, at that frame's estimate: the chain goes on through one frame-to-frame step (status
-  // Estimated, the reason says so). Restarting at the last estimate instead took each such
-  // frame's exposure change for none, and the back end changes the model every few frames.
-  // Where that frame is not there (kept, or with and without light factors across the change),
-  // the chain restarts at the last estimate as when all anchored tracks are lost.
+  // New response / vignette from the back end. Every anchor's patch is sampled again under the
+  // new model from the grey values it keeps (a ratio with the old model on one end would be
+  // biased), and the chain goes on with the anchors' exposures; a next frame with a reported
+  // exposure restarts the chain there instead (status Restarted, the reason says so). Dropping
+  // the anchors and restarting at the last estimate took the next frame's exposure change for
+  // none, every few frames (as often as the back end updates), and left the chain to short
+  // frame-to-frame steps.
   // `trusted_grey`: the grey range (0..255) the response was fitted over (see above); without it
   // every grey level has weight 1.
   void set_model(const ResponseModel& response, const VignetteModel& vignette,
@@ -147,14 +145,29 @@ public:
   double grey_weight(double y) const;
 
 private:
+  // The grey values a fixed-window patch is interpolated from: (kPatchSide + 1)^2 pixels from
+  // the one left of and above the patch's first sample, the shared sub-pixel fractions, and the
+  // patch's centre (for the vignette's radius).
+  struct GreyWindow {
+    Eigen::Matrix<float, (kPatchSide + 1) * (kPatchSide + 1), 1> grey;
+    double fx = 0.0, fy = 0.0;
+    Eigen::Vector2d position = Eigen::Vector2d::Zero();
+  };
   struct Anchor {
     PatchSamples irradiance;  // G(I)/V, -1 where clipped
     PatchSamples weight;      // trust in G at each pixel's grey value (see above)
+    GreyWindow grey;          // to sample irradiance and weight again under a new model
     double log_exposure = 0.0;
     double log_illumination = 0.0;  // log(P / d^2) when anchored (0 without a light model)
     Eigen::Matrix2d deformation_inverse = Eigen::Matrix2d::Identity();  // A_anchor^-1 (see above)
     std::int32_t surface = 0;           // the track's surface when anchored
   };
+  // G(I)/V of one sample bilinear in irradiance from its four grey values c00 (left, above) ..
+  // c11, with its trust; -1 and 0 where one of them is clipped.
+  void irradiance_sample(float c00, float c01, float c10, float c11, double fx, double fy, double x, double y,
+                         int cols, int rows, float& irradiance, float& weight) const;
+  // The anchor's patch again under the current model, from its grey window.
+  void resample(Anchor& anchor) const;
   // G(I)/V at the patch pixels position + A o (o the pixel offsets of the 9 x 9 grid), -1 where a
   // grey value is clipped; false when the patch does not fit in the image.
   bool irradiance_patch(const cv::Mat& intensity, const Eigen::Vector2d& position, const Eigen::Matrix2d& deformation,
@@ -165,10 +178,6 @@ private:
                             const PatchSamples& anchor_weight, double& log_ratio, double& trust) const;
   void anchor_all(const TrackedFrame& tracked, double log_exposure, bool only_new,
                   const std::vector<double>* log_illumination);
-  // Patches of every track of `tracked` under the current model (irradiance_, weight_, irradiance_valid_).
-  int sample_patches(const TrackedFrame& tracked);
-  // Keeps this frame (its estimate is log_exposure_) for a model change before the next one.
-  void remember_frame(const TrackedFrame& tracked, const std::vector<double>* log_illumination);
   const ExposureEstimate& keep(const TrackedFrame& tracked, ExposureStatus status, std::string reason);
 
   ExposureEstimatorOptions options_;
@@ -186,16 +195,7 @@ private:
   std::vector<char> irradiance_valid_;
   bool model_changed_ = false;
   bool illumination_modelled_ = false;  // the last frame came with light factors
-  // The last frame with an estimate of its own (see set_model); its intensity is a copy, since
-  // the tracker reuses its buffer.
-  struct EstimatedFrame {
-    TrackedFrame tracked;
-    std::vector<double> log_illumination;
-    bool lit = false;
-    double log_exposure = 0.0;
-    bool valid = false;
-  };
-  EstimatedFrame previous_;
+  int image_cols_ = 0, image_rows_ = 0;  // of the frames the anchors come from
 };
 
 }  // namespace nirslam

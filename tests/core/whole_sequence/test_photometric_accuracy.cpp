@@ -83,14 +83,15 @@ std::optional<double> true_light_cosine(const Simulator& sim, const SE3& T_world
   return hit->normal.dot((light - hit->point).normalized());
 }
 
-// Roughly standard normal (a sum of four uniforms scaled to unit variance), a fixed function of key.
-double gaussian_draw_for_key(std::uint64_t key) {
+// A sum of four uniforms on [-0.5, 0.5] (roughly normal, variance 1/3: times sqrt(3) for unit
+// variance), a fixed function of key.
+double uniform_sum_for_key(std::uint64_t key) {
   key = (key ^ (key >> 31)) * 0x9E3779B97F4A7C15ull;
   key ^= key >> 29;
   double n = 0.0;
   for (int i = 0; i < 4; ++i, key = key * 6364136223846793005ull + 1442695040888963407ull)
     n += static_cast<double>(key >> 11) / 9007199254740992.0 - 0.5;
-  return n * std::sqrt(3.0);
+  return n;
 }
 
 // Diagnosis (NIRSLAM_PHOTOMETRIC_HELD_PLACEMENT=sigma): the pipeline's held points
@@ -131,8 +132,8 @@ FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& 
       if (!d) return d;
       const std::uint64_t key = static_cast<std::uint64_t>(f.frame.index) * 1000003u +
                                 static_cast<std::uint64_t>(pixel.x() / 16.0) * 1009u + static_cast<std::uint64_t>(pixel.y() / 16.0);
-      const double n = gaussian_draw_for_key(key);
-      return *d * std::exp(sigma * n);
+      const double n = uniform_sum_for_key(key);
+      return *d * std::exp(sigma * n * std::sqrt(3.0));
     };
   }
   // Diagnosis: a drifting monocular scale, d exp(-drift * frame / 150) (the odometry's scale in the
@@ -159,7 +160,7 @@ FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& 
       const auto d = sim.light_distance(f.depth, pixel);
       const auto ray = sim.camera()->unproject(pixel);
       if (!d || !ray) return std::nullopt;
-      const double placed = *d * std::exp(held->sigma * gaussian_draw_for_key(static_cast<std::uint64_t>(track_id)));
+      const double placed = *d * std::exp(held->sigma * uniform_sum_for_key(static_cast<std::uint64_t>(track_id)) * std::sqrt(3.0));
       held->points_world.emplace(track_id, f.T_world_cam * point_at_light_distance(ray->normalized(), light_offset, placed));
       return placed;
     };

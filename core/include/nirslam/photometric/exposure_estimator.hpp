@@ -149,7 +149,8 @@ private:
   // the one left of and above the patch's first sample, the shared sub-pixel fractions, and the
   // patch's centre (for the vignette's radius).
   struct GreyWindow {
-    Eigen::Matrix<float, (kPatchSide + 1) * (kPatchSide + 1), 1> grey;
+    Eigen::Matrix<float, (kPatchSide + 1) * (kPatchSide + 1), 1> grey =
+        Eigen::Matrix<float, (kPatchSide + 1) * (kPatchSide + 1), 1>::Zero();
     double fx = 0.0, fy = 0.0;
     Eigen::Vector2d position = Eigen::Vector2d::Zero();
   };

@@ -12,8 +12,9 @@ TEST(HeldPerTrack, KeepsATrackAskedForAndForgetsOneLeftAlone) {
   held.hold(2, 20);
   for (int frame = 0; frame < 5; ++frame) {
     held.begin_frame(0);
-    ASSERT_NE(held.touch(1), nullptr) << "frame " << frame;
-    EXPECT_EQ(*held.touch(1), 10);
+    const int* value = held.touch(1);
+    ASSERT_NE(value, nullptr) << "frame " << frame;
+    EXPECT_EQ(*value, 10);
   }
   // Track 2 was held but not asked for: gone after two frames; find() alone does not keep a track.
   EXPECT_FALSE(held.contains(2));
@@ -40,8 +41,9 @@ TEST(HeldPerTrack, ANewSegmentOrClearStartsOver) {
   held.begin_frame(4);
   held.hold(8, 3.0);
   held.hold(8, 4.0);
-  ASSERT_NE(held.find(8), nullptr);
-  EXPECT_EQ(*held.find(8), 4.0);
+  const double* value = held.find(8);
+  ASSERT_NE(value, nullptr);
+  EXPECT_EQ(*value, 4.0);
 }
 
 }  // namespace

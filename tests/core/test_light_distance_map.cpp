@@ -7,11 +7,10 @@
 #include <gtest/gtest.h>
 
 #include "nirslam/pipeline/light_distance_map.hpp"
+#include "core/pinhole_camera_640.hpp"
 
 namespace nirslam {
 namespace {
-
-PinholeCamera camera_640() { return PinholeCamera(640, 480, Eigen::Vector4d(500.0, 500.0, 320.0, 240.0)); }
 
 // Points on the plane z = depth (camera frame) on a regular pixel grid with `step` pixels.
 std::vector<Eigen::Vector3d> plane_points(const CameraModel& camera, double depth, int step, int x0 = 0, int x1 = 640) {
@@ -23,7 +22,7 @@ std::vector<Eigen::Vector3d> plane_points(const CameraModel& camera, double dept
 }
 
 TEST(LightDistanceMap, DistanceFromTheLampNotFromTheCamera) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   LightDistanceMap map(camera);
   const Eigen::Vector3d light(0.05, -0.02, 0.0);
   map.build(plane_points(camera, 2.0, 10), SE3::identity(), light);
@@ -38,7 +37,7 @@ TEST(LightDistanceMap, DistanceFromTheLampNotFromTheCamera) {
 }
 
 TEST(LightDistanceMap, PoseMovesThePoints) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   LightDistanceMap map(camera);
   // The points are in the world; the camera stepped 0.5 towards them.
   const SE3 T_world_cam(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, 0.5));
@@ -49,7 +48,7 @@ TEST(LightDistanceMap, PoseMovesThePoints) {
 }
 
 TEST(LightDistanceMap, NoDistanceWhereNoPointIsNear) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   LightDistanceMap map(camera);
   EXPECT_FALSE(map.light_distance(Eigen::Vector2d(320.0, 240.0))) << "empty map";
   map.build(plane_points(camera, 2.0, 10, 0, 320), SE3::identity(), Eigen::Vector3d::Zero());
@@ -62,7 +61,7 @@ TEST(LightDistanceMap, NoDistanceWhereNoPointIsNear) {
 }
 
 TEST(LightDistanceMap, AtADepthEdgeOneSideWinsNotABlend) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   LightDistanceMap map(camera);
   // A near box (left half, 1 m) in front of a far wall (right half, 3 m).
   std::vector<Eigen::Vector3d> points = plane_points(camera, 1.0, 6, 0, 320);
@@ -81,7 +80,7 @@ TEST(LightDistanceMap, AtADepthEdgeOneSideWinsNotABlend) {
 }
 
 TEST(LightDistanceMap, PointsBehindOrOutsideAreLeftOut) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   LightDistanceMap map(camera);
   const std::vector<Eigen::Vector3d> points{{0.0, 0.0, -2.0}, {100.0, 0.0, 1.0}, {0.0, 0.0, 2.0}};
   map.build(points, SE3::identity(), Eigen::Vector3d::Zero());
@@ -145,7 +144,7 @@ namespace {
 // the left of the queried pixel: the median of the neighbours takes their nearer depth, the
 // plane in inverse depth evaluated at the pixel itself does not.
 TEST(LightDistanceMap, PlaneFitGivesTheDistanceAtThePixelItself) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   // The plane n . p = 2 with n = (-sin 60, 0, cos 60): z = 2 / (cos 60 - sin 60 x) for a ray (x, y, 1).
   const Eigen::Vector3d n(-std::sin(M_PI / 3.0), 0.0, std::cos(M_PI / 3.0));
   const auto on_wall = [&](const Eigen::Vector2d& pixel) {
@@ -193,7 +192,7 @@ TEST(LightDistanceMap, PlaneFitGivesTheDistanceAtThePixelItself) {
 // inverse-depth plane's normal alone (without fit_inverse_depth_plane) leaves the distance at the
 // neighbours' median.
 TEST(LightDistanceMap, UnderDepthNoiseTheInverseDepthPlaneKeepsTheNormal) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   std::vector<Eigen::Vector3d> points;
   int i = 0;
   for (int y = 250; y < 480; y += 5)
@@ -227,7 +226,7 @@ TEST(LightDistanceMap, UnderDepthNoiseTheInverseDepthPlaneKeepsTheNormal) {
 // The spread gate: neighbours whose distances scatter (a depth edge, unconverged points) give no
 // distance; the same wall with a 1 % scatter does.
 TEST(LightDistanceMap, NoDistanceWhereTheNeighboursDisagree) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   LightDistanceMapOptions options;
   options.max_log_spread = 0.05;  // median absolute deviation in log distance
   LightDistanceMap map(camera, options);

@@ -9,11 +9,10 @@
 #include <gtest/gtest.h>
 
 #include "nirslam/pipeline/track_light_cosines.hpp"
+#include "core/pinhole_camera_640.hpp"
 
 namespace nirslam {
 namespace {
-
-PinholeCamera camera_640() { return PinholeCamera(640, 480, Eigen::Vector4d(500.0, 500.0, 320.0, 240.0)); }
 
 // A rig driving along z over a floor at y = +1 (camera y points down), 5 cm a frame.
 SE3 pose_at(int frame) { return SE3(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.0, 0.0, 0.05 * frame)); }
@@ -32,7 +31,7 @@ Seen see(const CameraModel& camera, const Eigen::Vector3d& p_world, const SE3& T
 }
 
 TEST(TrackLightCosines, HeldNormalGivesTheCosineAtEveryPose) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   TrackLightCosines cosines(camera);
   const Eigen::Vector3d light_offset(0.05, 0.0, 0.0);
   const Eigen::Vector3d p_world(0.4, 1.0, 4.0);  // on the floor, 4 m ahead
@@ -53,7 +52,7 @@ TEST(TrackLightCosines, HeldNormalGivesTheCosineAtEveryPose) {
 }
 
 TEST(TrackLightCosines, ATiltedHeldNormalKeepsTheRatioWhereAFreshFitDoesNot) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   const Eigen::Vector3d light_offset(0.0, 0.0, 0.0);
   const Eigen::Vector3d p_world(-0.3, 1.0, 6.0);  // grazing: cos 0.16 at first
   // The fitted normal 4 degrees off the truth, about x (towards the rig's travel) or z (across).
@@ -96,7 +95,7 @@ TEST(TrackLightCosines, ATiltedHeldNormalKeepsTheRatioWhereAFreshFitDoesNot) {
 }
 
 TEST(TrackLightCosines, NoCosineWhereTheLightGrazesOrAfterANewSegment) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   TrackLightCosinesOptions options;
   options.min_cosine = 0.1;
   TrackLightCosines cosines(camera, options);

@@ -8,11 +8,10 @@
 
 #include "nirslam/photometric/photometric_tracker.hpp"
 #include "nirslam/pipeline/track_light_distances.hpp"
+#include "core/pinhole_camera_640.hpp"
 
 namespace nirslam {
 namespace {
-
-PinholeCamera camera_640() { return PinholeCamera(640, 480, Eigen::Vector4d(500.0, 500.0, 320.0, 240.0)); }
 
 // A camera moving along x (looking along z) by `step` metres a frame.
 SE3 pose_at(int frame, double step) { return SE3(Eigen::Matrix3d::Identity(), Eigen::Vector3d(step * frame, 0.0, 0.0)); }
@@ -28,7 +27,7 @@ TrackObservation observe(const CameraModel& camera, std::int64_t id, const Eigen
 }
 
 TEST(TrackLightDistances, RaysThatSpanTheParallaxGiveTheLampDistance) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   TrackLightDistances distances(camera);  // 3 degrees, 3 rays, 1.5 px
   const Eigen::Vector3d p_world(0.3, -0.2, 2.0);
   const Eigen::Vector3d light_offset(0.05, 0.0, 0.0);
@@ -54,7 +53,7 @@ TEST(TrackLightDistances, RaysThatSpanTheParallaxGiveTheLampDistance) {
 }
 
 TEST(TrackLightDistances, NoisyRaysStillLocateThePointToAFewPerCent) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   TrackLightDistances distances(camera);
   const Eigen::Vector3d p_world(-0.4, 0.1, 3.0);
   // Half a pixel of alternating error on every ray, 30 frames of 2 cm: 11 degrees of parallax.
@@ -69,7 +68,7 @@ TEST(TrackLightDistances, NoisyRaysStillLocateThePointToAFewPerCent) {
 }
 
 TEST(TrackLightDistances, ATrackThatSlidGivesNoDistance) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   TrackLightDistances distances(camera);
   const Eigen::Vector3d p_world(0.2, 0.0, 2.0);
   // Halfway the patch jumps to another surface 1 m further back (an occlusion edge): the rays
@@ -87,7 +86,7 @@ TEST(TrackLightDistances, ATrackThatSlidGivesNoDistance) {
 }
 
 TEST(TrackLightDistances, LostTracksAndNewSegmentsStartOver) {
-  const PinholeCamera camera = camera_640();
+  const PinholeCamera camera = pinhole_camera_640();
   TrackLightDistances distances(camera);
   const Eigen::Vector3d a(0.2, 0.0, 2.0), b(-0.3, 0.1, 2.5);
   for (int frame = 0; frame < 20; ++frame) {

@@ -8,11 +8,10 @@
 #include <gtest/gtest.h>
 
 #include "nirslam/pipeline/track_light_points.hpp"
+#include "core/pinhole_camera_640.hpp"
 
 namespace nirslam {
 namespace {
-
-PinholeCamera camera_for_held_points() { return PinholeCamera(640, 480, Eigen::Vector4d(500.0, 500.0, 320.0, 240.0)); }
 
 // A rig driving along z over a floor at y = +1 (camera y points down), 5 cm a frame.
 SE3 rig_pose_at(int frame) { return SE3(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.0, 0.0, 0.05 * frame)); }
@@ -28,7 +27,7 @@ SeenPoint see_point(const CameraModel& camera, const Eigen::Vector3d& p_world, c
 }
 
 TEST(TrackLightPoints, AHeldPointGivesTheDistanceAtEveryPose) {
-  const PinholeCamera camera = camera_for_held_points();
+  const PinholeCamera camera = pinhole_camera_640();
   TrackLightPoints points(camera);
   const Eigen::Vector3d light_offset(0.05, 0.0, 0.0);
   const Eigen::Vector3d p_world(0.4, 1.0, 6.0);
@@ -51,7 +50,7 @@ TEST(TrackLightPoints, AHeldPointGivesTheDistanceAtEveryPose) {
 }
 
 TEST(TrackLightPoints, ADepthErrorAtPlacementMovesTheRatioByTheTravelOverTheDistance) {
-  const PinholeCamera camera = camera_for_held_points();
+  const PinholeCamera camera = pinhole_camera_640();
   TrackLightPoints points(camera);
   const Eigen::Vector3d light_offset = Eigen::Vector3d::Zero();
   const Eigen::Vector3d p_world(0.4, 1.0, 6.0);
@@ -77,7 +76,7 @@ TEST(TrackLightPoints, ADepthErrorAtPlacementMovesTheRatioByTheTravelOverTheDist
 }
 
 TEST(TrackLightPoints, ForgottenAfterANewSegmentOrUnaskedFramesAndNothingBehindTheCamera) {
-  const PinholeCamera camera = camera_for_held_points();
+  const PinholeCamera camera = pinhole_camera_640();
   TrackLightPoints points(camera, TrackLightPointsOptions{.forget_after_frames = 2});
   const Eigen::Vector3d offset = Eigen::Vector3d::Zero();
   const Eigen::Vector2d pixel(400.0, 300.0);

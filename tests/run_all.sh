@@ -77,6 +77,11 @@ section "AddressSanitizer + UndefinedBehaviorSanitizer: unit tests"
 # simulator's halo, two undistortion checks, the marginalisation prior against the full problem,
 # the held geometric start on a room start from frame 30: 4 s here, 70 frames rendered at 2x2;
 # the replay test with the hold on by default stays); the window optimisation's energy test stays.
+# Likewise where a sibling test drives the same code through the sanitisers: the geometric start
+# on rendered walls and on the lamp-lit room (36 and 28 s here; the replay test runs the same
+# start inside the odometry, 67 s), the keyframe choice on a reported exposure step (20 s; the
+# choice without it stays) and the held correction (10 s; the gate's rejected estimates, on the
+# same frames through the same calibration, stay): this stage's tests 122 -> 80 s (2026-12-05).
 release_only=(
   'ExposureEstimator.ConstantRadiance*' 'ExposureEstimator.CoLocated*' 'WorkerOnSimulator.PipelineViews*'
   'PhotometricOnlineCalibration.BackgroundBackEnd*' '*FromRendered*'
@@ -85,6 +90,8 @@ release_only=(
   '*TileCullingFindsTheSameSurfaces*' 'BeamFromHalo.FromTheSimulatorsHaloFactor*'
   '*UndistortedImageMatchesTheIdealPinholeImage*' '*SixteenBitImagesKeepTheirRange*'
   '*MarginalisationPriorGivesTheFullProblemsStep*' '*HeldKeyframesKeepTheDirection*'
+  'GeometricStart.TooLittleTranslation*' 'GeometricStart.DirectionOfTheHandHeldRoom*'
+  'PhotometricKeyframeChoice.AReportedExposureChange*' 'PhotometricGate.HeldCorrectionKeeps*'
 )
 GTEST_FILTER="-$(IFS=:; echo "${release_only[*]}")" \
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \

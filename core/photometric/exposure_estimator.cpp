@@ -122,10 +122,12 @@ void ExposureEstimator::irradiance_sample(float c00, float c01, float c10, float
 void ExposureEstimator::resample(Anchor& anchor) const {
   constexpr int kWindowSide = kPatchSide + 1;
   const GreyWindow& w = anchor.grey;
+  const double fx = w.position.x() - static_cast<int>(w.position.x());
+  const double fy = w.position.y() - static_cast<int>(w.position.y());
   for (int i = 0; i < kPatchSide; ++i)
     for (int j = 0; j < kPatchSide; ++j) {
       const int k = i * kWindowSide + j;
-      irradiance_sample(w.grey[k], w.grey[k + 1], w.grey[k + kWindowSide], w.grey[k + kWindowSide + 1], w.fx, w.fy,
+      irradiance_sample(w.grey[k], w.grey[k + 1], w.grey[k + kWindowSide], w.grey[k + kWindowSide + 1], fx, fy,
                         w.position.x() + (j - kPatchRadius), w.position.y() + (i - kPatchRadius), image_cols_, image_rows_,
                         anchor.irradiance[i * kPatchSide + j], anchor.weight[i * kPatchSide + j]);
     }
@@ -170,8 +172,6 @@ void ExposureEstimator::anchor_all(const TrackedFrame& tracked, double log_expos
       const float* row = tracked.intensity.ptr<float>(y0 + r) + x0;
       for (int c = 0; c <= kPatchSide; ++c) anchor.grey.grey[r * (kPatchSide + 1) + c] = row[c];
     }
-    anchor.grey.fx = position.x() - static_cast<int>(position.x());
-    anchor.grey.fy = position.y() - static_cast<int>(position.y());
     anchor.grey.position = position;
     // The anchor's window is the fixed one; later patches are mapped back to it (see the header).
     if (options_.follow_deformation) anchor.deformation_inverse = tracked.tracks[i].deformation.inverse();

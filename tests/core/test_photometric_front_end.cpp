@@ -371,10 +371,6 @@ TEST(ExposureEstimator, TrustedGreyRangeFollowsTheTrustedPatches) {
   EXPECT_LT(dark, 1.7);
 }
 
-// Texture values are 0.1-0.45 of full scale (about 0.28 +- 0.045): at 3.5x about half of the
-// pixels saturate, under the 90 % that makes a frame say nothing.
-constexpr double kBrightFirstFrameGain = 3.5;
-
 class ExposureDegenerate : public ::testing::Test {
 protected:
   ExposureDegenerate() : estimator_(ResponseModel::from_preset(ResponsePreset::Gamma), VignetteModel{}) {}
@@ -492,6 +488,9 @@ TEST_F(ExposureDegenerate, NewModelWithAReportedExposureRestartsThere) {
 // few ratios while the next frames' patches are fine. The chain restarts on them (here at the
 // reported exposure) instead of keeping the first frame's value until the last anchored track dies.
 TEST_F(ExposureDegenerate, AnchorsClippedInABrightFirstFrameRestartTheChain) {
+  // Texture values are 0.1-0.45 of full scale (about 0.28 +- 0.045): at 3.5x about half of the
+  // pixels saturate, under the 90 % that makes a frame say nothing.
+  constexpr double kBrightFirstFrameGain = 3.5;
   // A patch needs 70 of its 81 pixels unclipped here, so that a first frame with about half of
   // its pixels saturated leaves (almost) no usable anchor.
   ExposureEstimatorOptions options;

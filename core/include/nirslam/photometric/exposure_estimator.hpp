@@ -146,12 +146,11 @@ public:
 
 private:
   // The grey values a fixed-window patch is interpolated from: (kPatchSide + 1)^2 pixels from
-  // the one left of and above the patch's first sample, the shared sub-pixel fractions, and the
-  // patch's centre (for the vignette's radius).
+  // the one left of and above the patch's first sample, and the patch's centre (for the
+  // vignette's radius; the samples' shared sub-pixel fractions are its own).
   struct GreyWindow {
     Eigen::Matrix<float, (kPatchSide + 1) * (kPatchSide + 1), 1> grey =
         Eigen::Matrix<float, (kPatchSide + 1) * (kPatchSide + 1), 1>::Zero();
-    double fx = 0.0, fy = 0.0;
     Eigen::Vector2d position = Eigen::Vector2d::Zero();
   };
   struct Anchor {

@@ -178,7 +178,10 @@ private:
 //   held: the surface point placed once, at the first neighbours' distance along the pixel's ray,
 //         and carried with the odometry's poses (what pipeline.lamp_distance_source:
 //         held-neighbours does, TrackLightPoints; here on its own so the three are compared in
-//         one run with the same poses).
+//         one run with the same poses);
+//   held after N: the same, placed only once the track has N neighbour distances
+//         (NIRSLAM_PIPELINE_HOLD_AFTER, default 5), at the median of the N surface points they
+//         place (per coordinate, world frame); no distance before.
 class RatioAlongTrackProbe {
 public:
   void frame(const Simulator& simulator, const SimulatedFrame& f, const SlamPipeline& pipeline, const Eigen::Vector3d& light_offset) {
@@ -203,8 +206,29 @@ public:
           held = neighbours;
         }
       }
-      const std::optional<double> estimates[3] = {neighbours, triangulated, held};
-      for (int source = 0; source < 3; ++source) {
+      std::optional<double> held_after;
+      if (t.held_after) {
+        const Eigen::Vector3d p_cam = T_world_cam.inverse() * *t.held_after;
+        if (p_cam.z() > 0.0) held_after = (p_cam - light_offset).norm();
+      } else if (neighbours) {
+        if (const auto ray = camera.unproject(track.position)) {
+          t.placed.push_back(T_world_cam * point_at_light_distance(ray->normalized(), light_offset, *neighbours));
+          if (static_cast<int>(t.placed.size()) >= hold_after_) {
+            Eigen::Vector3d median;
+            for (int axis = 0; axis < 3; ++axis) {
+              std::vector<double> values;
+              for (const Eigen::Vector3d& p : t.placed) values.push_back(p[axis]);
+              std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+              median[axis] = values[values.size() / 2];
+            }
+            t.held_after = median;
+            const Eigen::Vector3d p_cam = T_world_cam.inverse() * median;
+            if (p_cam.z() > 0.0) held_after = (p_cam - light_offset).norm();
+          }
+        }
+      }
+      const std::optional<double> estimates[4] = {neighbours, triangulated, held, held_after};
+      for (int source = 0; source < 4; ++source) {
         if (!estimates[source] || !(*estimates[source] > 0.0)) continue;
         const double log_error = std::log(*estimates[source] / *truth);
         if (!t.first[source]) {
@@ -216,8 +240,8 @@ public:
     }
   }
   void print() {
-    const char* names[3] = {"neighbours", "tracks", "held"};
-    for (int source = 0; source < 3; ++source) {
+    const char* names[4] = {"neighbours", "tracks", "held", "held after"};
+    for (int source = 0; source < 4; ++source) {
       std::vector<double>& e = errors_[source];
       if (e.empty()) continue;
       std::sort(e.begin(), e.end());
@@ -230,11 +254,14 @@ public:
 
 private:
   struct Track {
-    std::optional<double> first[3];
+    std::optional<double> first[4];
     std::optional<Eigen::Vector3d> held;
+    std::vector<Eigen::Vector3d> placed;  // the held-after source's surface points so far
+    std::optional<Eigen::Vector3d> held_after;
   };
+  int hold_after_ = std::getenv("NIRSLAM_PIPELINE_HOLD_AFTER") ? std::atoi(std::getenv("NIRSLAM_PIPELINE_HOLD_AFTER")) : 5;
   std::unordered_map<std::int64_t, Track> tracks_;
-  std::vector<double> errors_[3];
+  std::vector<double> errors_[4];
 };
 
 // How well the held cosines follow the truth along each track: log(cos_est / cos_true) minus its

@@ -196,35 +196,35 @@ public:
       std::optional<double> triangulated;
       if (pipeline.track_light_distances())
         triangulated = pipeline.track_light_distances()->light_distance(track.id, T_world_cam, light_offset);
+      // A held surface point's distance from the lamp now (none behind the camera).
+      const auto held_distance = [&](const Eigen::Vector3d& p_world) -> std::optional<double> {
+        const Eigen::Vector3d p_cam = T_world_cam.inverse() * p_world;
+        if (!(p_cam.z() > 0.0)) return std::nullopt;
+        return (p_cam - light_offset).norm();
+      };
+      const auto ray = camera.unproject(track.position);
       std::optional<double> held;
       if (t.held) {
-        const Eigen::Vector3d p_cam = T_world_cam.inverse() * *t.held;
-        if (p_cam.z() > 0.0) held = (p_cam - light_offset).norm();
-      } else if (neighbours) {
-        if (const auto ray = camera.unproject(track.position)) {
-          t.held = T_world_cam * point_at_light_distance(ray->normalized(), light_offset, *neighbours);
-          held = neighbours;
-        }
+        held = held_distance(*t.held);
+      } else if (neighbours && ray) {
+        t.held = T_world_cam * point_at_light_distance(ray->normalized(), light_offset, *neighbours);
+        held = neighbours;
       }
       std::optional<double> held_after;
       if (t.held_after) {
-        const Eigen::Vector3d p_cam = T_world_cam.inverse() * *t.held_after;
-        if (p_cam.z() > 0.0) held_after = (p_cam - light_offset).norm();
-      } else if (neighbours) {
-        if (const auto ray = camera.unproject(track.position)) {
-          t.placed.push_back(T_world_cam * point_at_light_distance(ray->normalized(), light_offset, *neighbours));
-          if (static_cast<int>(t.placed.size()) >= hold_after_) {
-            Eigen::Vector3d median;
-            for (int axis = 0; axis < 3; ++axis) {
-              std::vector<double> values;
-              for (const Eigen::Vector3d& p : t.placed) values.push_back(p[axis]);
-              std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
-              median[axis] = values[values.size() / 2];
-            }
-            t.held_after = median;
-            const Eigen::Vector3d p_cam = T_world_cam.inverse() * median;
-            if (p_cam.z() > 0.0) held_after = (p_cam - light_offset).norm();
+        held_after = held_distance(*t.held_after);
+      } else if (neighbours && ray) {
+        t.placed.push_back(T_world_cam * point_at_light_distance(ray->normalized(), light_offset, *neighbours));
+        if (static_cast<int>(t.placed.size()) >= hold_after_) {
+          Eigen::Vector3d median;
+          for (int axis = 0; axis < 3; ++axis) {
+            std::vector<double> values;
+            for (const Eigen::Vector3d& p : t.placed) values.push_back(p[axis]);
+            std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+            median[axis] = values[values.size() / 2];
           }
+          t.held_after = median;
+          held_after = held_distance(median);
         }
       }
       const std::optional<double> estimates[4] = {neighbours, triangulated, held, held_after};

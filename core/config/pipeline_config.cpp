@@ -55,7 +55,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
     if (const auto parsed = lamp_distance_source_from_string(*source))
       pipeline.lamp_distance_source = *parsed;
     else
-      stages.fail_at("lamp_distance_source", "expected 'neighbours', 'tracks', 'tracks-else-neighbours' or 'held-neighbours', got '" + *source + "'");
+      stages.fail_at("lamp_distance_source", "expected 'neighbours', 'tracks', 'tracks-else-neighbours', 'held-neighbours' or 'held-tracks', got '" + *source + "'");
   }
   stages.read<double>("lamp_track_min_parallax_deg", pipeline.track_light_distances.min_parallax_deg, 0.1, 45.0);
   stages.read<double>("lamp_track_max_ray_error_px", pipeline.track_light_distances.max_ray_error_px, 0.05, 100.0);

@@ -90,6 +90,7 @@ std::string_view to_string(LampDistanceSource source) {
     case LampDistanceSource::Tracks: return "tracks";
     case LampDistanceSource::TracksElseNeighbours: return "tracks-else-neighbours";
     case LampDistanceSource::HeldNeighbours: return "held-neighbours";
+    case LampDistanceSource::HeldTracks: return "held-tracks";
   }
   return "neighbours";
 }
@@ -97,7 +98,7 @@ std::string_view to_string(LampDistanceSource source) {
 std::optional<LampDistanceSource> lamp_distance_source_from_string(std::string_view text) {
   for (const LampDistanceSource source :
        {LampDistanceSource::Neighbours, LampDistanceSource::Tracks, LampDistanceSource::TracksElseNeighbours,
-        LampDistanceSource::HeldNeighbours})
+        LampDistanceSource::HeldNeighbours, LampDistanceSource::HeldTracks})
     if (text == to_string(source)) return source;
   return std::nullopt;
 }
@@ -171,10 +172,11 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
     }
     if (calibration_ && corrects_illuminator(options_.mode) && options_.lamp_distances_to_calibration)
       light_distances_ = std::make_unique<LightDistanceMap>(*camera_, options_.light_distances);
-    if (light_distances_ && (options_.lamp_distance_source == LampDistanceSource::Tracks ||
-                             options_.lamp_distance_source == LampDistanceSource::TracksElseNeighbours))
+    const LampDistanceSource source = options_.lamp_distance_source;
+    if (light_distances_ && (source == LampDistanceSource::Tracks || source == LampDistanceSource::TracksElseNeighbours ||
+                             source == LampDistanceSource::HeldTracks))
       track_distances_ = std::make_unique<TrackLightDistances>(*camera_, options_.track_light_distances);
-    if (light_distances_ && options_.lamp_distance_source == LampDistanceSource::HeldNeighbours)
+    if (light_distances_ && (source == LampDistanceSource::HeldNeighbours || source == LampDistanceSource::HeldTracks))
       track_points_ = std::make_unique<TrackLightPoints>(*camera_);
     if (light_distances_ && options_.lamp_cosine_to_calibration && options_.lamp_cosine_held_per_track)
       track_cosines_ = std::make_unique<TrackLightCosines>(*camera_, options_.track_light_cosines);
@@ -297,11 +299,13 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
       if (track_points_) {
         track_points_->begin_frame(*predicted_T_world_cam_, last_pose_->segment);
         illumination.track_light_distance_m = [this](std::int64_t track_id, const Eigen::Vector2d& pixel) {
-          return track_points_->light_distance(track_id, pixel, options_.odometry.light_offset,
-                                               [&] { return light_distances_->light_distance(pixel); });
+          return track_points_->light_distance(track_id, pixel, options_.odometry.light_offset, [&]() -> std::optional<double> {
+            if (track_distances_)  // held-tracks: placed at the track's triangulation, once it has one
+              return track_distances_->light_distance(track_id, *predicted_T_world_cam_, options_.odometry.light_offset);
+            return light_distances_->light_distance(pixel);
+          });
         };
-      }
-      if (track_distances_)
+      } else if (track_distances_)
         illumination.track_light_distance_m = [this](std::int64_t track_id, const Eigen::Vector2d&) {
           return track_distances_->light_distance(track_id, *predicted_T_world_cam_, options_.odometry.light_offset);
         };
@@ -316,7 +320,8 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
           if (track_distances_)
             distance = track_distances_->light_distance(track_id, *predicted_T_world_cam_, options_.odometry.light_offset);
           if (track_points_) distance = track_points_->held_light_distance(track_id, options_.odometry.light_offset);
-          if (!distance && options_.lamp_distance_source != LampDistanceSource::Tracks)
+          if (!distance && options_.lamp_distance_source != LampDistanceSource::Tracks &&
+              options_.lamp_distance_source != LampDistanceSource::HeldTracks)
             distance = geometry ? std::optional<double>(geometry->distance) : light_distances_->light_distance(pixel);
           if (!distance) return std::nullopt;
           return track_cosines_->cosine(track_id, pixel, *distance, options_.odometry.light_offset,

@@ -97,6 +97,9 @@ TEST(PipelineConfig, LampDistanceSourceIsReadAndAWrongOneNamed) {
   EXPECT_EQ(load_pipeline_config(write_pipeline_yaml("lamp_distance_source_held", "pipeline:\n  lamp_distance_source: held-neighbours\n"))
                 .worker.pipeline.lamp_distance_source,
             LampDistanceSource::HeldNeighbours);
+  EXPECT_EQ(load_pipeline_config(write_pipeline_yaml("lamp_distance_source_held_tracks", "pipeline:\n  lamp_distance_source: held-tracks\n"))
+                .worker.pipeline.lamp_distance_source,
+            LampDistanceSource::HeldTracks);
   const std::string error =
       pipeline_config_error(write_pipeline_yaml("lamp_distance_source_bad", "pipeline:\n  lamp_distance_source: depth\n"));
   EXPECT_NE(error.find("pipeline.lamp_distance_source"), std::string::npos) << error;

@@ -1,8 +1,9 @@
 #pragma once
 // The lamp's distance to a tracked patch from a surface point held per track (issue 8): the
 // first time a track is asked for, its point is placed on the pixel's ray at the distance the
-// odometry's points near it give (LightDistanceMap), in the world frame of the odometry's pose;
-// from then on the distance is that point's from the lamp in each frame's pose.
+// caller gives (the odometry's points near it, LightDistanceMap, or the track's own
+// triangulation, TrackLightDistances), in the world frame of the odometry's pose; from then on
+// the distance is that point's from the lamp in each frame's pose.
 //
 // What the calibration uses is a track's distance RATIO between frames. Looked up afresh every
 // frame, the neighbours' distance changes with the odometry's window (points come and go, their

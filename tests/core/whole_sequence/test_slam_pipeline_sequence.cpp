@@ -210,13 +210,15 @@ public:
         return (p_cam - light_offset).norm();
       };
       const auto ray = camera.unproject(track.position);
-      std::optional<double> held;
-      if (t.held) {
-        held = held_distance(*t.held);
-      } else if (neighbours && ray) {
-        t.held = T_world_cam * point_at_light_distance(ray->normalized(), light_offset, *neighbours);
-        held = neighbours;
-      }
+      // A held source's distance now: its point's, or, the first time `first` has a value, the
+      // point placed on the pixel's ray at that distance.
+      const auto hold = [&](std::optional<Eigen::Vector3d>& point, const std::optional<double>& first) -> std::optional<double> {
+        if (point) return held_distance(*point);
+        if (!first || !ray) return std::nullopt;
+        point = T_world_cam * point_at_light_distance(ray->normalized(), light_offset, *first);
+        return first;
+      };
+      const std::optional<double> held = hold(t.held, neighbours);
       std::optional<double> held_after;
       if (t.held_after) {
         held_after = held_distance(*t.held_after);
@@ -234,13 +236,7 @@ public:
           held_after = held_distance(median);
         }
       }
-      std::optional<double> held_at_tracks;
-      if (t.held_at_tracks) {
-        held_at_tracks = held_distance(*t.held_at_tracks);
-      } else if (triangulated && ray) {
-        t.held_at_tracks = T_world_cam * point_at_light_distance(ray->normalized(), light_offset, *triangulated);
-        held_at_tracks = triangulated;
-      }
+      const std::optional<double> held_at_tracks = hold(t.held_at_tracks, triangulated);
       const std::optional<double> estimates[kSources] = {neighbours, triangulated, held, held_after, held_at_tracks};
       for (int source = 0; source < kSources; ++source) {
         if (!estimates[source] || !(*estimates[source] > 0.0)) continue;

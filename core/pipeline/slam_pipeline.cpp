@@ -317,9 +317,10 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
           if (!track_cosines_->holds_normal(track_id)) geometry = light_distances_->light_geometry(pixel);
           // The distance the calibration takes for this patch (the track's own first).
           std::optional<double> distance;
-          if (track_distances_)
+          if (track_points_)
+            distance = track_points_->held_light_distance(track_id, options_.odometry.light_offset);
+          else if (track_distances_)
             distance = track_distances_->light_distance(track_id, *predicted_T_world_cam_, options_.odometry.light_offset);
-          if (track_points_) distance = track_points_->held_light_distance(track_id, options_.odometry.light_offset);
           if (!distance && options_.lamp_distance_source != LampDistanceSource::Tracks &&
               options_.lamp_distance_source != LampDistanceSource::HeldTracks)
             distance = geometry ? std::optional<double>(geometry->distance) : light_distances_->light_distance(pixel);

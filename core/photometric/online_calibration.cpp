@@ -159,6 +159,29 @@ std::int64_t OnlinePhotometricCalibration::keyframes_dropped() const {
   return dropped_;
 }
 
+std::int64_t OnlinePhotometricCalibration::illumination_filled() const {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  return illumination_filled_;
+}
+
+void OnlinePhotometricCalibration::fill_unknown_illumination(std::int64_t frame_index, std::vector<TrackIllumination> values) {
+  if (!options_.run_backend || values.empty()) return;
+  Job job;
+  job.kind = Job::Illumination;
+  job.frame_index = frame_index;
+  job.illumination = std::move(values);
+  if (!options_.background_thread || !thread_.joinable()) {
+    run_job(job);
+    return;
+  }
+  {
+    // Never dropped like a waiting keyframe: it is small, and its keyframe may still be waiting.
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    queue_.push_back(std::move(job));
+  }
+  queue_changed_.notify_all();
+}
+
 void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& model) {
   const VignetteModel& vignette = options_.correction_vignette ? *options_.correction_vignette : model.vignette;
   const bool first = correction_version_ < 0;
@@ -417,6 +440,12 @@ void OnlinePhotometricCalibration::run_job(Job& job) {
       publish(step);
       break;
     }
+    case Job::Illumination: {
+      const std::size_t filled = backend_.fill_unknown_illumination(job.frame_index, job.illumination);
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      illumination_filled_ += static_cast<std::int64_t>(filled);
+      break;
+    }
     case Job::Finish: {
       const BackendStep step = backend_.optimise(options_.final_iterations, true);
       last_backend_ms_ = milliseconds_since(start);
@@ -425,6 +454,10 @@ void OnlinePhotometricCalibration::run_job(Job& job) {
     }
     case Job::Reset: {
       backend_.reset();
+      {
+        std::lock_guard<std::mutex> lock(queue_mutex_);
+        illumination_filled_ = 0;
+      }
       version_ = 0;
       saw_known_exposure_ = false;
       last_backend_ms_ = 0.0;
@@ -461,7 +494,7 @@ void OnlinePhotometricCalibration::submit_and_wait(Job::Kind kind) {
   std::unique_lock<std::mutex> lock(queue_mutex_);
   if (kind == Job::Reset) {
     // Waiting keyframes belong to the old run.
-    std::erase_if(queue_, [](const Job& j) { return j.kind == Job::Keyframe; });
+    std::erase_if(queue_, [](const Job& j) { return j.kind == Job::Keyframe || j.kind == Job::Illumination; });
   }
   queue_.push_back(std::move(job));
   queue_changed_.notify_all();
@@ -469,6 +502,16 @@ void OnlinePhotometricCalibration::submit_and_wait(Job::Kind kind) {
 }
 
 void OnlinePhotometricCalibration::finish() { submit_and_wait(Job::Finish); }
+
+std::vector<PhotometricKeyframe> OnlinePhotometricCalibration::stored_keyframes() const {
+  const auto copy = [this] { return std::vector<PhotometricKeyframe>(backend_.keyframes().begin(), backend_.keyframes().end()); };
+  if (!options_.background_thread || !thread_.joinable()) return copy();
+  // With the queue empty and the back end idle under the lock, it cannot start another job until
+  // the lock is let go: the keyframes are still.
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  queue_changed_.wait(lock, [this] { return stopping_ || (queue_.empty() && !busy_); });
+  return copy();
+}
 
 void OnlinePhotometricCalibration::reset() {
   submit_and_wait(Job::Reset);

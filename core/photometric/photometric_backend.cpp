@@ -313,6 +313,26 @@ void PhotometricBackend::add_keyframe(PhotometricKeyframe keyframe) {
   }
 }
 
+std::size_t PhotometricBackend::fill_unknown_illumination(std::int64_t frame_index,
+                                                         std::span<const TrackIllumination> values) {
+  const auto keyframe = std::find_if(keyframes_.rbegin(), keyframes_.rend(),
+                                     [&](const PhotometricKeyframe& k) { return k.frame_index == frame_index; });
+  if (keyframe == keyframes_.rend() || !keyframe->illumination_modelled) return 0;
+  std::unordered_map<std::int64_t, double> by_track;
+  by_track.reserve(values.size());
+  for (const TrackIllumination& value : values)
+    if (std::isfinite(value.log_illumination)) by_track.emplace(value.track_id, value.log_illumination);
+  std::size_t filled = 0;
+  for (KeyframeObservation& o : keyframe->observations) {
+    if (std::isfinite(o.log_illumination)) continue;
+    if (const auto value = by_track.find(o.track_id); value != by_track.end()) {
+      o.log_illumination = static_cast<float>(value->second);
+      ++filled;
+    }
+  }
+  return filled;
+}
+
 std::vector<std::pair<std::int64_t, double>> PhotometricBackend::keyframe_exposures() const {
   std::vector<std::pair<std::int64_t, double>> out;
   out.reserve(keyframes_.size());

@@ -2,6 +2,7 @@
 // numeric differentiation, the inverse response, and the optimisation on synthetic keyframes.
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <random>
 #include <sstream>
 
@@ -523,10 +524,16 @@ TEST(PhotometricBackend, EstimatesExposuresUnderNormalisation) {
 }
 
 // Keyframes of a rig approaching surfaces under its own lamp: every point brightens as
-// (d_0/d_k)^2, by a different amount per point. Unknown exposures: without the factor the back end
-// takes the common brightening for exposure; with it, the exposures come out right.
-TEST(PhotometricBackend, CoLitKeyframesNeedTheDistanceFactor) {
-  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
+// (d_0/d_k)^2, by a different amount per point, and the exposure swings. Each keyframe starts
+// at exposure 5 but the first (the gauge holds it).
+struct CoLitKeyframes {
+  ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
+  std::vector<double> exposures;
+  std::vector<PhotometricKeyframe> keyframes;  // with log_illumination
+};
+
+CoLitKeyframes co_lit_keyframes() {
+  CoLitKeyframes out;
   const int width = 320, height = 240, tracks = 60, keyframes = 20;
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
@@ -537,11 +544,9 @@ TEST(PhotometricBackend, CoLitKeyframesNeedTheDistanceFactor) {
     d0[static_cast<std::size_t>(t)] = 2.0 + 3.0 * uniform(rng);
     start[static_cast<std::size_t>(t)] = Eigen::Vector2d(30 + 260 * uniform(rng), 30 + 180 * uniform(rng));
   }
-  std::vector<double> exposures;
-  std::vector<PhotometricKeyframe> with_factor, without_factor;
   for (int k = 0; k < keyframes; ++k) {
     const double e = 5.0 * std::exp(0.4 * std::sin(0.9 * k));
-    exposures.push_back(e);
+    out.exposures.push_back(e);
     PhotometricKeyframe kf;
     kf.frame_index = k;
     kf.width = width;
@@ -556,35 +561,93 @@ TEST(PhotometricBackend, CoLitKeyframesNeedTheDistanceFactor) {
       o.log_illumination = static_cast<float>(log_illumination(50.0, d));
       const double a = (d0[static_cast<std::size_t>(t)] / d) * (d0[static_cast<std::size_t>(t)] / d);
       for (int p = 0; p < kBackendPixels; ++p) {
-        const double grey = 255.0 * truth(e * a * radiance[static_cast<std::size_t>(t)] * (1.0 + 0.05 * p));
+        const double grey = 255.0 * out.truth(e * a * radiance[static_cast<std::size_t>(t)] * (1.0 + 0.05 * p));
         o.grey[static_cast<std::size_t>(p)] = grey > 3.0 && grey < 250.0 ? static_cast<float>(grey) : -1.0f;
       }
       kf.observations.push_back(o);
     }
-    with_factor.push_back(kf);
+    out.keyframes.push_back(std::move(kf));
+  }
+  return out;
+}
+
+// The worst keyframe exposure error of the batch optimisation with the true response and no
+// vignette; `prepare` may change the stored keyframes before it runs.
+double co_lit_worst_exposure_error(const CoLitKeyframes& input, const std::function<void(PhotometricBackend&)>& prepare = {}) {
+  PhotometricBackendOptions options;
+  options.initial_response = input.truth;
+  options.estimate_response = false;
+  options.estimate_vignette = false;
+  PhotometricBackend backend(options);
+  for (PhotometricKeyframe kf : input.keyframes) backend.add_keyframe(std::move(kf));
+  if (prepare) prepare(backend);
+  const BackendStep step = backend.optimise(60, true);
+  EXPECT_TRUE(step.ok) << step.status;
+  double worst = 0.0;
+  const auto estimated = backend.keyframe_exposures();
+  for (std::size_t k = 0; k < estimated.size(); ++k)
+    worst = std::max(worst, std::abs(estimated[k].second / input.exposures[k] - 1.0));
+  return worst;
+}
+
+// Unknown exposures: without the factor the back end takes the common brightening for exposure;
+// with it, the exposures come out right.
+TEST(PhotometricBackend, CoLitKeyframesNeedTheDistanceFactor) {
+  const CoLitKeyframes with_factor = co_lit_keyframes();
+  CoLitKeyframes without_factor = with_factor;
+  for (PhotometricKeyframe& kf : without_factor.keyframes) {
     kf.illumination_modelled = false;
     for (KeyframeObservation& o : kf.observations) o.log_illumination = 0.0f;
-    without_factor.push_back(kf);
   }
-  const auto worst_exposure_error = [&](std::vector<PhotometricKeyframe> input) {
-    PhotometricBackendOptions options;
-    options.initial_response = truth;
-    options.estimate_response = false;
-    options.estimate_vignette = false;
-    PhotometricBackend backend(options);
-    for (auto& kf : input) backend.add_keyframe(std::move(kf));
-    const BackendStep step = backend.optimise(60, true);
-    EXPECT_TRUE(step.ok) << step.status;
-    double worst = 0.0;
-    const auto estimated = backend.keyframe_exposures();
-    for (std::size_t k = 0; k < estimated.size(); ++k)
-      worst = std::max(worst, std::abs(estimated[k].second / exposures[k] - 1.0));
-    return worst;
-  };
-  const double with = worst_exposure_error(with_factor), without = worst_exposure_error(without_factor);
+  const double with = co_lit_worst_exposure_error(with_factor), without = co_lit_worst_exposure_error(without_factor);
   std::printf("worst exposure error: with the factor %.5f, without %.3f\n", with, without);
   EXPECT_LT(with, 2e-3);
   EXPECT_GT(without, 0.1);
+}
+
+// A track's distance learnt late (the pipeline triangulates it after some keyframes): its earlier
+// observations came without one (NaN, left out), so the first keyframes, whose tracks all came
+// late, have no observation and keep their starting exposure. Filled in afterwards with the
+// distances (fill_unknown_illumination), the exposures come out as if known throughout; a known
+// value is never replaced, and a keyframe not stored or made without the factor takes nothing.
+TEST(PhotometricBackend, DistancesFilledInLaterCountAsIfKnownThroughout) {
+  const CoLitKeyframes complete = co_lit_keyframes();
+  CoLitKeyframes late = complete;
+  // Track t gets its distance from keyframe 3 + t % 8 on.
+  for (PhotometricKeyframe& kf : late.keyframes)
+    for (KeyframeObservation& o : kf.observations)
+      if (kf.frame_index < 3 + o.track_id % 8) o.log_illumination = std::nanf("");
+  const auto fill_in = [&](PhotometricBackend& backend) {
+    std::size_t filled = 0, expected = 0;
+    for (const PhotometricKeyframe& kf : complete.keyframes) {
+      std::vector<TrackIllumination> values;
+      for (const KeyframeObservation& o : kf.observations) {
+        values.push_back(TrackIllumination{o.track_id, o.log_illumination});
+        expected += kf.frame_index < 3 + o.track_id % 8;
+      }
+      filled += backend.fill_unknown_illumination(kf.frame_index, values);
+      // Again, with values that are off: nothing left to fill, nothing replaced.
+      for (TrackIllumination& v : values) v.log_illumination += 1.0;
+      EXPECT_EQ(backend.fill_unknown_illumination(kf.frame_index, values), 0u);
+    }
+    EXPECT_EQ(filled, expected);
+    EXPECT_GT(expected, 300u);
+    EXPECT_EQ(backend.fill_unknown_illumination(99, std::vector<TrackIllumination>{{0, 1.0}}), 0u) << "no such keyframe";
+  };
+  const double known = co_lit_worst_exposure_error(complete), unfilled = co_lit_worst_exposure_error(late),
+               filled = co_lit_worst_exposure_error(late, fill_in);
+  std::printf("worst exposure error: known throughout %.5f, learnt late %.3f, filled in %.5f\n", known, unfilled, filled);
+  EXPECT_GT(unfilled, 0.05) << "the test needs keyframes that lose their observations";
+  EXPECT_NEAR(filled, known, 1e-6);
+
+  // A keyframe made before the caller had distances at all is not filled (its observations are
+  // of another model, and the back end leaves such keyframes out beside lit ones).
+  PhotometricBackend backend;
+  PhotometricKeyframe unlit = complete.keyframes[0];
+  unlit.illumination_modelled = false;
+  for (KeyframeObservation& o : unlit.observations) o.log_illumination = std::nanf("");
+  backend.add_keyframe(unlit);
+  EXPECT_EQ(backend.fill_unknown_illumination(0, std::vector<TrackIllumination>{{0, 1.0}}), 0u);
 }
 
 // Under the lamp the factor a comes from estimated distances. Noise in log a is noise in the

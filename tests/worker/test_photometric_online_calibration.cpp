@@ -109,6 +109,68 @@ TEST(PhotometricOnlineCalibration, CorrectionFollowsTheEstimateInBoundedSteps) {
   EXPECT_EQ(calibration.correction_vignette().v, calibration.estimate()->vignette.v);
 }
 
+// Distances learnt late (the pipeline's lamp_distance_backfill): queued from the caller's thread
+// while the back end works on its own, and filled into the keyframes they belong to.
+TEST(PhotometricOnlineCalibration, IlluminationFilledInLaterReachesTheStoredKeyframes) {
+  OnlineCalibrationOptions options;
+  OnlinePhotometricCalibration calibration(options);
+  // Odd tracks have their distance at once, even ones only three frames later.
+  FrameIllumination illumination;
+  illumination.track_light_distance_m = [](std::int64_t id, const Eigen::Vector2d&) -> std::optional<double> {
+    if (id % 2 == 0) return std::nullopt;
+    return 2.0;
+  };
+  illumination.power_w = 1.0;  // the room is lit by ambient light alone: the simulator reports 0 W
+  const double late_log_illumination = log_illumination(1.0, 2.0);
+  std::vector<std::pair<std::int64_t, std::vector<std::int64_t>>> waiting;  // keyframe -> even tracks
+  Simulator sim(test_sequences::small_ambient_room(40));
+  int keyframes = 0;
+  while (auto f = sim.next()) {
+    const CorrectedFrame out = calibration.process(f->frame, illumination);
+    if (out.keyframe) {
+      ++keyframes;
+      std::vector<std::int64_t> even;
+      for (const TrackObservation& t : calibration.last_tracks())
+        if (t.id % 2 == 0) even.push_back(t.id);
+      waiting.emplace_back(f->frame.index, std::move(even));
+    }
+    while (!waiting.empty() && waiting.front().first + 3 <= f->frame.index) {
+      std::vector<TrackIllumination> values;
+      for (const std::int64_t id : waiting.front().second) values.push_back({id, late_log_illumination});
+      calibration.fill_unknown_illumination(waiting.front().first, std::move(values));
+      waiting.erase(waiting.begin());
+    }
+  }
+  calibration.finish();
+  const std::vector<PhotometricKeyframe> stored = calibration.stored_keyframes();
+  ASSERT_GT(keyframes, 5);
+  ASSERT_FALSE(stored.empty());
+  std::int64_t even_observations = 0, unknown = 0;
+  for (const PhotometricKeyframe& k : stored) {
+    EXPECT_TRUE(k.illumination_modelled);
+    const bool answered = k.frame_index + 3 <= 39;
+    for (const KeyframeObservation& o : k.observations) {
+      even_observations += o.track_id % 2 == 0 && answered;
+      unknown += !std::isfinite(o.log_illumination);
+      if (o.track_id % 2 == 0 && answered) {
+        EXPECT_FLOAT_EQ(o.log_illumination, static_cast<float>(late_log_illumination));
+      }
+    }
+    if (!answered) {
+      EXPECT_TRUE(std::any_of(k.observations.begin(), k.observations.end(), [](const KeyframeObservation& o) {
+        return !std::isfinite(o.log_illumination);
+      })) << "the last keyframes' even tracks were never answered";
+    }
+  }
+  EXPECT_GT(even_observations, 50);
+  EXPECT_EQ(calibration.illumination_filled(), even_observations);
+  std::printf("%d keyframes, %zu stored, %lld observations filled in later, %lld left unknown\n", keyframes, stored.size(),
+              static_cast<long long>(calibration.illumination_filled()), static_cast<long long>(unknown));
+  calibration.reset();
+  EXPECT_EQ(calibration.illumination_filled(), 0);
+  EXPECT_TRUE(calibration.stored_keyframes().empty());
+}
+
 TEST(PhotometricOnlineCalibration, DegenerateFramesKeepTheLastEstimateNeverNaN) {
   OnlineCalibrationOptions options;
   options.background_thread = false;

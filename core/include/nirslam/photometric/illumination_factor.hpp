@@ -50,6 +50,15 @@ struct FrameIllumination {
   std::optional<double> power_w;
 };
 
+// A tracked patch's log_illumination found after its frame was calibrated: the pipeline learns a
+// track's distance only once the track is triangulated, and then knows it for the track's earlier
+// keyframes too (their poses are the odometry's), so the back end fills those observations in
+// (PhotometricBackend::fill_unknown_illumination).
+struct TrackIllumination {
+  std::int64_t track_id = 0;
+  double log_illumination = 0.0;
+};
+
 // log(P / d^2); NaN when the distance or power is not usable. With d_log_d, the derivative of the
 // result with respect to d (-2 / d).
 // With a cosine as well: log(P cos / d^2); NaN when the cosine is not a usable one.

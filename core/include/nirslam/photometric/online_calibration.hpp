@@ -203,6 +203,16 @@ public:
   const ResponseModel& correction_response() const { return correction_response_; }
   const VignetteModel& correction_vignette() const { return correction_vignette_; }
   std::int64_t keyframes_dropped() const;
+  // Log illumination found later for tracked patches of an earlier frame (illumination_factor.hpp's
+  // TrackIllumination): queued for the back end in order with the keyframes, and filled into that
+  // frame's keyframe where it had none (PhotometricBackend::fill_unknown_illumination). Never blocks.
+  void fill_unknown_illumination(std::int64_t frame_index, std::vector<TrackIllumination> values);
+  // Observations filled that way so far (from any thread).
+  std::int64_t illumination_filled() const;
+  // A copy of the keyframes the back end holds, as it holds them (observations, their
+  // log_illumination), once everything queued is processed: to see what the calibration was
+  // given. Caller's thread; waits for the back end.
+  std::vector<PhotometricKeyframe> stored_keyframes() const;
   // While held, the corrected frames keep the model they use now and do not follow new estimates
   // (the back end and the exposure front end go on). The caller's thread. The pipeline holds it
   // while the odometry initialises (PipelineOptions::hold_correction_frames): the initialiser
@@ -217,8 +227,10 @@ public:
 
 private:
   struct Job {
-    enum Kind { Keyframe, Finish, Reset } kind = Keyframe;
+    enum Kind { Keyframe, Illumination, Finish, Reset } kind = Keyframe;
     PhotometricKeyframe keyframe;
+    std::int64_t frame_index = 0;  // Illumination: the keyframe's frame
+    std::vector<TrackIllumination> illumination;
   };
   void backend_loop();
   void run_job(Job& job);
@@ -255,11 +267,12 @@ private:
 
   // Shared.
   mutable std::mutex queue_mutex_;
-  std::condition_variable queue_changed_;
+  mutable std::condition_variable queue_changed_;  // stored_keyframes() waits on it
   std::deque<Job> queue_;
   bool stopping_ = false;
   bool busy_ = false;
   std::int64_t dropped_ = 0;
+  std::int64_t illumination_filled_ = 0;
   mutable std::mutex estimate_mutex_;  // guards only the pointer
   std::shared_ptr<const PhotometricEstimate> estimate_;
   std::thread thread_;

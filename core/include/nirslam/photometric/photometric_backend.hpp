@@ -108,6 +108,7 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <span>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -115,6 +116,7 @@
 #include <Eigen/Core>
 
 #include "nirslam/photometric/beam_halo.hpp"
+#include "nirslam/photometric/illumination_factor.hpp"
 #include "nirslam/photometric/keyframe_selection.hpp"
 #include "nirslam/photometric/response_model.hpp"
 
@@ -383,6 +385,11 @@ public:
   explicit PhotometricBackend(PhotometricBackendOptions options = {});
 
   void add_keyframe(PhotometricKeyframe keyframe);
+  // The stored keyframe of frame `frame_index` takes these tracks' log_illumination where its
+  // observation has none (NaN: the distance was unknown then); a known one is never replaced, so
+  // a track's factors stay of one distance source. Returns how many observations were filled
+  // (0 when the keyframe is not stored, e.g. thinned out, or was made without the light's model).
+  std::size_t fill_unknown_illumination(std::int64_t frame_index, std::span<const TrackIllumination> values);
   // LM iterations over the online window (the last max_keyframes keyframes), or over every stored
   // keyframe when `all_stored` (batch: the final optimisation).
   BackendStep optimise(int max_iterations, bool all_stored = false);
@@ -394,6 +401,7 @@ public:
   // Current exposure of each stored keyframe (frame index -> exposure).
   std::vector<std::pair<std::int64_t, double>> keyframe_exposures() const;
   std::size_t stored_keyframes() const { return keyframes_.size(); }
+  const std::deque<PhotometricKeyframe>& keyframes() const { return keyframes_; }
   const PhotometricBackendOptions& options() const { return options_; }
   void reset();
 

@@ -178,8 +178,22 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
       track_distances_ = std::make_unique<TrackLightDistances>(*camera_, options_.track_light_distances);
     if (light_distances_ && (source == LampDistanceSource::HeldNeighbours || source == LampDistanceSource::HeldTracks))
       track_points_ = std::make_unique<TrackLightPoints>(*camera_);
+    if (options_.lamp_distance_backfill) {
+      if (source != LampDistanceSource::Tracks && source != LampDistanceSource::HeldTracks)
+        throw std::invalid_argument(fmt::format("pipeline.lamp_distance_backfill needs lamp_distance_source 'tracks' or "
+                                                "'held-tracks' (the track's own point), not '{}'",
+                                                to_string(source)));
+      if (options_.lamp_cosine_to_calibration && !options_.lamp_cosine_held_per_track)
+        throw std::invalid_argument("pipeline.lamp_distance_backfill fills in the lamp's cosine from the normal held "
+                                    "per track: it needs lamp_cosine_held_per_track with lamp_cosine_to_calibration");
+    }
     if (light_distances_ && options_.lamp_cosine_to_calibration && options_.lamp_cosine_held_per_track)
       track_cosines_ = std::make_unique<TrackLightCosines>(*camera_, options_.track_light_cosines);
+    if (options_.lamp_distance_backfill && track_distances_) {
+      KeyframeLightBackfillOptions backfill;
+      backfill.min_cosine = options_.track_light_cosines.min_cosine;
+      backfill_ = std::make_unique<KeyframeLightBackfill>(backfill);
+    }
     if (light_distances_ && options_.estimate_light_offset && !options_.light_offset_configured)
       light_offset_ = std::make_unique<KeyframeLightOffset>(*pinhole_, options_.light_offset_estimation);
   }
@@ -335,6 +349,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
         };
       }
       corrected = calibration_->process(frame, illumination);
+      if (backfill_) backfill_lamp_distances(frame, corrected.keyframe);
       result.light_distance_points = light_distances_->projected_points();
       light_distance_points_ = result.light_distance_points;
     } else {
@@ -378,6 +393,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
         input.beam_exponent = *estimate->beam_exponent;
     result.timings.undistort_ms = ms_since(start);
     OdometryResult odometry = odometry_->process(input);
+    if (backfill_) backfill_->place_keyframe(frame.index, odometry.T_world_cam, odometry.segment);
     // The initialiser's hand-over, with the wall time of its phases (README, "Speed").
     if (odometry.message.rfind("initialised with", 0) == 0) spdlog::info("odometry: {}", odometry.message);
     frames_tracking_ = odometry.status == TrackingStatus::Tracking ? frames_tracking_ + 1 : 0;
@@ -401,6 +417,28 @@ bool SlamPipeline::predict_light_distances() {
   predicted_T_world_cam_ = predicted;
   light_distances_->build(window_points_, predicted, options_.odometry.light_offset);
   return !light_distances_->empty();
+}
+
+void SlamPipeline::backfill_lamp_distances(const Frame& frame, bool keyframe) {
+  // The point a track's distances come from: its held one, else its triangulation.
+  const auto point_of_track = [this](std::int64_t track_id) -> std::optional<Eigen::Vector3d> {
+    if (track_points_) return track_points_->point_world(track_id);
+    return track_distances_->point_world(track_id);
+  };
+  // With the cosine, the track's held normal.
+  KeyframeLightBackfill::VectorOfTrack normal_of_track;
+  if (track_cosines_)
+    normal_of_track = [this](std::int64_t track_id) { return track_cosines_->normal_world(track_id); };
+  const std::vector<TrackObservation>& tracks = calibration_->last_tracks();
+  for (KeyframeIllumination& found :
+       backfill_->resolve(last_pose_->segment, point_of_track, tracks, options_.odometry.light_offset, normal_of_track))
+    calibration_->fill_unknown_illumination(found.frame_index, std::move(found.values));
+  if (!keyframe) return;
+  std::vector<std::int64_t> without_distance;
+  for (const TrackObservation& track : tracks)
+    if (!point_of_track(track.id) || (track_cosines_ && !track_cosines_->holds_normal(track.id)))
+      without_distance.push_back(track.id);
+  backfill_->add_keyframe(frame.index, frame.illuminator_power_w.value_or(1.0), std::move(without_distance));
 }
 
 void SlamPipeline::estimate_light_offset(const OdometryFrame& input, const cv::Mat& irradiance,
@@ -444,6 +482,7 @@ void SlamPipeline::remember_odometry(const OdometryResult& result) {
     if (track_distances_) track_distances_->clear();
     if (track_cosines_) track_cosines_->clear();
     if (track_points_) track_points_->clear();
+    if (backfill_) backfill_->clear();
     if (!result.T_world_cam) return;
   }
   previous_pose_ = last_pose_;

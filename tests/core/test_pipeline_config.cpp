@@ -106,6 +106,26 @@ TEST(PipelineConfig, LampDistanceSourceIsReadAndAWrongOneNamed) {
   EXPECT_NE(error.find("'depth'"), std::string::npos) << error;
 }
 
+TEST(PipelineConfig, LampDistanceBackfillNeedsTheTracksOwnPointAndAHeldNormal) {
+  EXPECT_FALSE(PipelineOptions{}.lamp_distance_backfill);
+  EXPECT_TRUE(load_pipeline_config(write_pipeline_yaml("lamp_distance_backfill",
+                                                       "pipeline:\n  lamp_distance_source: held-tracks\n  lamp_distance_backfill: true\n"))
+                  .worker.pipeline.lamp_distance_backfill);
+  const std::string neighbours = pipeline_config_error(
+      write_pipeline_yaml("lamp_distance_backfill_neighbours", "pipeline:\n  lamp_distance_backfill: true\n"));
+  EXPECT_NE(neighbours.find("pipeline.lamp_distance_backfill"), std::string::npos) << neighbours;
+  EXPECT_NE(neighbours.find("'neighbours'"), std::string::npos) << neighbours;
+  EXPECT_TRUE(load_pipeline_config(write_pipeline_yaml("lamp_distance_backfill_cosine",
+                                                       "pipeline:\n  lamp_distance_source: tracks\n  lamp_cosine_to_calibration: "
+                                                       "true\n  lamp_distance_backfill: true\n"))
+                  .worker.pipeline.lamp_distance_backfill);
+  const std::string cosine = pipeline_config_error(write_pipeline_yaml(
+      "lamp_distance_backfill_cosine_per_frame",
+      "pipeline:\n  lamp_distance_source: tracks\n  lamp_cosine_to_calibration: true\n  lamp_cosine_held_per_track: false\n"
+      "  lamp_distance_backfill: true\n"));
+  EXPECT_NE(cosine.find("lamp_cosine_held_per_track"), std::string::npos) << cosine;
+}
+
 TEST(PipelineConfig, ResponseCurvatureWeightsWithAndWithoutTheLamp) {
   EXPECT_DOUBLE_EQ(PipelineOptions{}.calibration.backend.lit_log_curvature_weight, 100.0);
   const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(

@@ -28,6 +28,7 @@
 #include "nirslam/photometric/exposure_scale.hpp"
 #include "nirslam/photometric/given_calibration.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
+#include "nirslam/pipeline/keyframe_light_backfill.hpp"
 #include "nirslam/pipeline/keyframe_light_offset.hpp"
 #include "nirslam/pipeline/light_distance_map.hpp"
 #include "nirslam/pipeline/track_light_cosines.hpp"
@@ -157,6 +158,12 @@ struct PipelineOptions {
   // times closer to the truth than the held neighbours' on the simulated street, parking and
   // tunnel, for a fifth of the observations; README "Illuminator correction", session 32).
   LampDistanceSource lamp_distance_source = LampDistanceSource::Neighbours;
+  // With Tracks or HeldTracks: once a track has its point, the calibration's earlier keyframes
+  // that had no distance for it take theirs from that point at the odometry's pose of their frame
+  // (keyframe_light_backfill.hpp), so more observations get a ratio of the track's own point, not
+  // only those after its triangulation. With lamp_cosine_to_calibration, their cosines from the
+  // track's held normal (so it needs lamp_cosine_held_per_track).
+  bool lamp_distance_backfill = false;
   TrackLightDistancesOptions track_light_distances;
   // The lamp's offset from the camera centre (Illuminated mode): when odometry.light_offset is
   // not configured, estimated at every keyframe from the recent keyframes (keyframe_light_offset.hpp)
@@ -254,6 +261,7 @@ public:
   const LightDistanceMap* light_distances() const { return light_distances_.get(); }
   const TrackLightDistances* track_light_distances() const { return track_distances_.get(); }
   const TrackLightPoints* track_light_points() const { return track_points_.get(); }
+  const KeyframeLightBackfill* keyframe_light_backfill() const { return backfill_.get(); }
   const TrackLightCosines* track_light_cosines() const { return track_cosines_.get(); }
   // The pose the last frame's lamp distances were computed for (constant velocity).
   const std::optional<SE3>& light_distance_pose() const { return predicted_T_world_cam_; }
@@ -276,6 +284,9 @@ private:
   // Builds the lamp distances for the frame about to be calibrated; false when there are none.
   bool predict_light_distances();
   void remember_odometry(const OdometryResult& result);
+  // lamp_distance_backfill: the earlier keyframes' distances found this frame go to the
+  // calibration, and a new keyframe's tracks without one start waiting.
+  void backfill_lamp_distances(const Frame& frame, bool keyframe);
 
   PipelineOptions options_;
   std::shared_ptr<const CameraModel> camera_;
@@ -296,6 +307,7 @@ private:
   std::unique_ptr<TrackLightDistances> track_distances_;
   std::unique_ptr<TrackLightCosines> track_cosines_;
   std::unique_ptr<TrackLightPoints> track_points_;
+  std::unique_ptr<KeyframeLightBackfill> backfill_;
   std::optional<SE3> predicted_T_world_cam_;  // of the frame about to be calibrated
   std::vector<Eigen::Vector3d> window_points_;  // the odometry's active points, world frame
   std::optional<TrackedPose> last_pose_;

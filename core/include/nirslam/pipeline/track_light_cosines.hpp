@@ -53,6 +53,11 @@ public:
   std::optional<double> held_cosine(std::int64_t track_id, const Eigen::Vector2d& pixel, double light_distance,
                                     const Eigen::Vector3d& light_offset_cam) const;
 
+  // The track's held unit normal (world frame); std::nullopt before it has one.
+  std::optional<Eigen::Vector3d> normal_world(std::int64_t track_id) const {
+    const Eigen::Vector3d* held = normals_world_.find(track_id);
+    return held ? std::optional<Eigen::Vector3d>(*held) : std::nullopt;
+  }
   // Whether the track has a normal held (cosine() then needs no fitted one).
   bool holds_normal(std::int64_t track_id) const { return normals_world_.contains(track_id); }
 

@@ -49,6 +49,12 @@ public:
   // The same for a track that has a point, without placing one; std::nullopt otherwise.
   std::optional<double> held_light_distance(std::int64_t track_id, const Eigen::Vector3d& light_offset_cam) const;
 
+  // The track's held point (the odometry's world frame); std::nullopt before it has one.
+  std::optional<Eigen::Vector3d> point_world(std::int64_t track_id) const {
+    const Eigen::Vector3d* held = points_world_.find(track_id);
+    return held ? std::optional<Eigen::Vector3d>(*held) : std::nullopt;
+  }
+
   std::size_t tracks() const { return points_world_.size(); }
 
 private:

@@ -167,6 +167,14 @@ TEST(PipelineConfig, GivenCalibrationBenchFileAddsTheBeam) {
   EXPECT_TRUE(halo_beam.worker.pipeline.given_calibration_folder.empty());
   EXPECT_TRUE(halo_beam.worker.pipeline.odometry.beam_corrected_weights);
   EXPECT_EQ(halo_beam.worker.pipeline.odometry.beam_exponent, 0.0) << "no data sheet";
+  // The same with the lamp's distances and cosines from each patch's own track, back-filled.
+  const PipelineConfig colit = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-lamp-colit-calibration.yaml");
+  EXPECT_FALSE(colit.worker.pipeline.calibration.background_thread);
+  EXPECT_EQ(colit.worker.pipeline.lamp_halo, LampHaloModel::Beam);
+  EXPECT_EQ(colit.worker.pipeline.lamp_distance_source, LampDistanceSource::HeldTracks);
+  EXPECT_TRUE(colit.worker.pipeline.lamp_distance_backfill);
+  EXPECT_TRUE(colit.worker.pipeline.lamp_cosine_to_calibration);
+  EXPECT_TRUE(colit.worker.pipeline.lamp_cosine_held_per_track);
   // The lamp-off calibration that gives the lens vignette: repeatable, V straight at the rim.
   const PipelineConfig lens = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/lens-calibration.yaml");
   EXPECT_FALSE(lens.worker.pipeline.calibration.background_thread);

@@ -163,25 +163,35 @@ struct Shader {
     return best;
   }
 
-  // The nearest hits of a packet of four rays; best holds primitive indices (-1: none).
+  // The nearest hits of a packet of four rays; best holds primitive indices (-1: none). Each lane
+  // gets exactly the hit a packet of four copies of its own ray would get: a lane stops taking
+  // hits where its own ray would have stopped tracing (a candidate's `near` beyond its best hit)
+  // and takes no hit from the members of a group whose box its ray misses, so packets of
+  // neighbouring pixels render the same image as packets of one pixel's subsamples.
   void trace4(const detail::Packet& packet, const std::vector<Candidate>& candidates, detail::Array4f& t,
               Eigen::Array4i& best) const {
+    using Mask = Eigen::Array<bool, 4, 1>;
     t = detail::Array4f::Constant(std::numeric_limits<float>::infinity());
     detail::Array4f best_f = detail::Array4f::Constant(-1.0f);
+    Mask in_group = Mask::Constant(true);
+    std::size_t group_end = 0;  // candidates before this index belong to the group being traced
     const std::size_t n = candidates.size();
     for (std::size_t k = 0; k < n; ++k) {
       const Candidate& c = candidates[k];
       if (c.near >= t.maxCoeff()) break;
+      if (k >= group_end) in_group = Mask::Constant(true);
       if (c.index < 0) {
         const PrimitiveGroup& g = scene.groups[static_cast<std::size_t>(-c.index - 1)];
         detail::Array4f tn, tf;
         detail::slab4(g.lo, g.hi, packet.o, packet.ix, packet.iy, packet.iz, tn, tf);
-        if (!((tn <= tf) && (tf > detail::kEpsilon) && (tn < t)).any()) k += static_cast<std::size_t>(c.skip);
+        in_group = (tn <= tf) && (tf > detail::kEpsilon) && (tn < t);
+        group_end = k + 1 + static_cast<std::size_t>(c.skip);
+        if (!in_group.any()) k = group_end - 1;
         continue;
       }
       const detail::Array4f tc = detail::hit_distance4(scene.primitives[static_cast<std::size_t>(c.index)],
                                                        yaw[static_cast<std::size_t>(c.index)], packet);
-      const Eigen::Array<bool, 4, 1> closer = tc < t;  // evaluated now: t changes below
+      const Mask closer = (tc < t) && (detail::Array4f::Constant(c.near) < t) && in_group;  // evaluated now: t changes below
       best_f = closer.select(detail::Array4f::Constant(static_cast<float>(c.index)), best_f);
       t = closer.select(tc, t);
     }
@@ -399,8 +409,42 @@ void Renderer::render(std::span<const SE3> poses, const Lighting& lighting, cv::
   for (int sy = 0; sy < ss_; ++sy)
     for (int sx = 0; sx < ss_; ++sx) slot_of_sample[static_cast<std::size_t>(sy * ss_ + sx)] = blur ? slot_of(sx, sy) : 0;
 
+  // The hits of up to four neighbouring pixels of one row, one sample each (lanes past `count`
+  // repeat the last pixel).
+  struct RowHits {
+    std::array<int, 4> prim{}, face{};
+    std::array<float, 4> dist{};
+    std::array<Vector3f, 4> dir;
+  };
+  const bool row_packets = samples == 1 && !blur;
+  const auto trace_row_packet = [&](const SlotState& st, const std::vector<Candidate>& candidates, const Vector3f* first_dir,
+                                    int count, RowHits& hits) {
+    detail::Array4f dx, dy, dz;
+    for (int l = 0; l < 4; ++l) {
+      const auto i = static_cast<std::size_t>(std::min(l, count - 1));
+      const bool valid = first_dir[i].squaredNorm() > 0.0f;
+      hits.dir[static_cast<std::size_t>(l)] = valid ? Vector3f(st.R * first_dir[i]) : Vector3f(st.R.col(2));
+      dx[l] = hits.dir[static_cast<std::size_t>(l)].x();
+      dy[l] = hits.dir[static_cast<std::size_t>(l)].y();
+      dz[l] = hits.dir[static_cast<std::size_t>(l)].z();
+    }
+    const detail::Packet packet = detail::make_packet(st.centre, dx, dy, dz);
+    detail::Array4f t;
+    Eigen::Array4i best;
+    shader.trace4(packet, candidates, t, best);
+    for (int l = 0; l < count; ++l) {
+      const auto i = static_cast<std::size_t>(l);
+      hits.dist[i] = t[l];
+      hits.prim[i] = first_dir[i].squaredNorm() > 0.0f ? best[l] : -2;
+      if (hits.prim[i] >= 0)
+        hits.face[i] = detail::hit_face_at(scene.primitives[static_cast<std::size_t>(hits.prim[i])],
+                                           tables.yaw[static_cast<std::size_t>(hits.prim[i])], st.centre + t[l] * hits.dir[i]);
+    }
+  };
+
   const auto body = [&](const cv::Range& range) {
     std::vector<std::vector<Candidate>> direct(n_slots), mirrored(n_slots);
+    RowHits row_hits;
     for (auto& v : direct) v.reserve(scene.primitives.size() + scene.groups.size());
     for (auto& v : mirrored) v.reserve(scene.primitives.size() + scene.groups.size());
     for (int ti = range.start; ti < range.end; ++ti) {
@@ -420,12 +464,20 @@ void Renderer::render(std::span<const SE3> poses, const Lighting& lighting, cv::
         for (int x = tile.x0; x < tile.x1; ++x, ++p) {
           const float pixel_angle = pixel_angle_[p];
           // Trace every subsample: in packets of four rays without motion blur (one pose), one by
-          // one with it (each subsample has its own pose).
+          // one with it (each subsample has its own pose). With one sample a pixel, a packet holds
+          // the pixel and the three after it in the row, traced when the first of them is reached.
           std::array<int, kMaxSamples> prim{}, face{};
           std::array<float, kMaxSamples> dist{};
           std::array<Vector3f, kMaxSamples> dir;
           const Vector3f* dcs = &sample_dirs_[p * static_cast<std::size_t>(samples)];
-          if (!blur) {
+          if (row_packets) {
+            const int lane = (x - tile.x0) % 4;
+            if (lane == 0) trace_row_packet(state[0], direct[0], dcs, std::min(4, tile.x1 - x), row_hits);
+            prim[0] = row_hits.prim[static_cast<std::size_t>(lane)];
+            face[0] = row_hits.face[static_cast<std::size_t>(lane)];
+            dist[0] = row_hits.dist[static_cast<std::size_t>(lane)];
+            dir[0] = row_hits.dir[static_cast<std::size_t>(lane)];
+          } else if (!blur) {
             const SlotState& st = state[0];
             for (int s0 = 0; s0 < samples; s0 += 4) {
               detail::Array4f dx, dy, dz;

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -192,12 +193,34 @@ FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& 
   return illumination;
 }
 
+// A sequence rendered once for every run on it: a run's two passes (below) and the runs of a test
+// that compares settings on the same frames (the renderer was about 60 % of these tests' CPU).
+// The frames are kept without their radiance, which no pass reads; with their depth maps when
+// a run is to hand the calibration the lamp's true distances.
+struct RenderedSequence {
+  SimulatorOptions options;
+  bool with_depth = false;
+  std::vector<SimulatedFrame> frames;
+};
+
+RenderedSequence render(const SimulatorOptions& options, bool with_depth) {
+  RenderedSequence out{options, with_depth, {}};
+  Simulator sim(options);
+  while (auto f = sim.next(with_depth)) {
+    f->radiance.release();
+    out.frames.push_back(std::move(*f));
+  }
+  return out;
+}
+
 // Calibrates online over the sequence, finish(), then estimates every frame's exposure again with
 // the final model (front end only), as `nirslam calibrate` does.
-// With light_factor the calibration gets the lamp's true distances, with light_cosine (or
-// NIRSLAM_PHOTOMETRIC_TRUE_COSINE set) also the true cos(theta).
-AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures, bool light_factor = false,
+// With light_factor the calibration gets the lamp's true distances (the sequence rendered with
+// its depth), with light_cosine (or NIRSLAM_PHOTOMETRIC_TRUE_COSINE set) also the true cos(theta).
+AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, bool light_factor = false,
                 bool light_cosine = false, const std::function<void(OnlineCalibrationOptions&)>& adjust = {}) {
+  if (light_factor && !sequence.with_depth) throw std::invalid_argument("run: the lamp's distances need a sequence rendered with depth");
+  const SimulatorOptions& sim_options = sequence.options;
   light_cosine |= std::getenv("NIRSLAM_PHOTOMETRIC_TRUE_COSINE") != nullptr;
   OnlineCalibrationOptions options;
   options.background_thread = false;  // deterministic
@@ -291,26 +314,21 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
     held.emplace();
     held->sigma = std::atof(sigma);
   }
-  // Both passes below see the same frames, so they are rendered once (the renderer was about 60 %
-  // of these tests' CPU) and kept without their radiance, which neither pass reads.
-  Simulator sim(sim_options);
-  std::vector<SimulatedFrame> rendered;
+  const Simulator sim(sim_options);  // the camera and the lamp's geometry for the true distances
   {
     OnlinePhotometricCalibration calibration(options);
-    while (auto f = sim.next(light_factor)) {
-      Frame frame = f->frame;
+    for (const SimulatedFrame& f : sequence.frames) {
+      Frame frame = f.frame;
       const double e = *frame.exposure_ms * frame.gain.value_or(1.0);
       truth.exposures.emplace_back(frame.index, e);
       e_min = std::min(e_min, e);
       e_max = std::max(e_max, e);
-      out.mean_grey += f->mean_grey;
+      out.mean_grey += f.mean_grey;
       if (!use_reported_exposures) frame.exposure_ms.reset();
-      front_end += (light_factor ? calibration.process(frame, true_illumination(sim, *f, light_cosine, held ? &*held : nullptr))
+      front_end += (light_factor ? calibration.process(frame, true_illumination(sim, f, light_cosine, held ? &*held : nullptr))
                                  : calibration.process(frame))
                        .front_end_ms;
       ++frames;
-      f->radiance.release();
-      rendered.push_back(std::move(*f));
     }
     calibration.finish();
     out.estimate = calibration.estimate();
@@ -340,7 +358,7 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
     held->points_world.clear();
     held->log_errors.clear();
   }
-  for (const SimulatedFrame& f : rendered) {
+  for (const SimulatedFrame& f : sequence.frames) {
     Frame frame = f.frame;
     if (!use_reported_exposures) frame.exposure_ms.reset();
     if (light_factor)
@@ -409,6 +427,11 @@ AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures
     }
   }
   return out;
+}
+
+AccuracyRun run(const SimulatorOptions& sim_options, bool use_reported_exposures, bool light_factor = false,
+                bool light_cosine = false, const std::function<void(OnlineCalibrationOptions&)>& adjust = {}) {
+  return run(render(sim_options, light_factor), use_reported_exposures, light_factor, light_cosine, adjust);
 }
 
 void print(const char* label, const AccuracyRun& r) {
@@ -513,8 +536,9 @@ TEST(PhotometricAccuracy, RoomConstantRadianceNormalisation) {
 // Exposures on the reported scale (exposure_scale.hpp, session 25): without the factor 21.4 %,
 // with it 0.94 % (on the chain's first-frame scale 66.8 % and 3.03 %).
 TEST(PhotometricAccuracy, RoomCoLitDistanceFactor) {
-  const AccuracyRun plain = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, false);
-  const AccuracyRun lit = run(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true, true);
+  const RenderedSequence sequence = render(co_lit(sim::SceneKind::Room, ResponsePreset::Log, 150), true);
+  const AccuracyRun plain = run(sequence, true, false);
+  const AccuracyRun lit = run(sequence, true, true);
   print("room co-lit", plain);
   print("room co-lit+d^2", lit);
   EXPECT_LT(lit.errors.exposure_median_relative, 0.04);
@@ -559,8 +583,9 @@ TEST(PhotometricAccuracy, CoLitInconsistentPointsLeftOut) {
         options.backend.lit_point_rejection_sigmas = sigmas;
       };
     };
-    const AccuracyRun kept = run(co_lit(scene, ResponsePreset::Gamma, 150), true, true, true, settings(0.0));
-    const AccuracyRun left_out = run(co_lit(scene, ResponsePreset::Gamma, 150), true, true, true, settings(2.0));
+    const RenderedSequence sequence = render(co_lit(scene, ResponsePreset::Gamma, 150), true);
+    const AccuracyRun kept = run(sequence, true, true, true, settings(0.0));
+    const AccuracyRun left_out = run(sequence, true, true, true, settings(2.0));
     const std::string name(sim::to_string(scene));
     print((name + " all points").c_str(), kept);
     print((name + " left out").c_str(), left_out);
@@ -598,13 +623,16 @@ TEST(PhotometricAccuracy, CoLitTable) {
     ASSERT_TRUE(parsed.has_value()) << "NIRSLAM_PHOTOMETRIC_COLIT_RESPONSE: not a response preset: " << name;
     response = *parsed;
   }
-  for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel})
+  for (const sim::SceneKind scene : {sim::SceneKind::Room, sim::SceneKind::Outdoor, sim::SceneKind::Parking, sim::SceneKind::Tunnel}) {
+    std::optional<RenderedSequence> sequence;  // one render for both rows of a scene
     for (const bool factor : {false, true}) {
       const std::string label = std::string(sim::to_string(scene)) + " " + std::string(to_string(response)) + (factor ? " +d^2" : " plain");
       if (!wanted_row(label)) continue;
-      const AccuracyRun r = run(co_lit(scene, response, 150), true, factor);
+      if (!sequence) sequence = render(co_lit(scene, response, 150), true);
+      const AccuracyRun r = run(*sequence, true, factor);
       print(label.c_str(), r);
     }
+  }
 }
 
 // Does the simulator's radiance follow the lamp model the calibration fits, L = rho B(alpha)

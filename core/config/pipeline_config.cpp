@@ -58,13 +58,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
       stages.fail_at("lamp_distance_source", "expected 'neighbours', 'tracks', 'tracks-else-neighbours', 'held-neighbours' or 'held-tracks', got '" + *source + "'");
   }
   stages.read_flag("lamp_distance_backfill", pipeline.lamp_distance_backfill);
-  if (pipeline.lamp_distance_backfill && pipeline.lamp_distance_source != LampDistanceSource::Tracks &&
-      pipeline.lamp_distance_source != LampDistanceSource::HeldTracks)
-    stages.fail_at("lamp_distance_backfill", "needs lamp_distance_source 'tracks' or 'held-tracks' (the track's own point), got '" +
-                                                 std::string(to_string(pipeline.lamp_distance_source)) + "'");
-  if (pipeline.lamp_distance_backfill && pipeline.lamp_cosine_to_calibration && !pipeline.lamp_cosine_held_per_track)
-    stages.fail_at("lamp_distance_backfill", "fills in the lamp's cosine from the normal held per track: with "
-                                             "lamp_cosine_to_calibration it needs lamp_cosine_held_per_track: true");
+  if (const auto problem = lamp_distance_backfill_problem(pipeline)) stages.fail_at("lamp_distance_backfill", *problem);
   stages.read<double>("lamp_track_min_parallax_deg", pipeline.track_light_distances.min_parallax_deg, 0.1, 45.0);
   stages.read<double>("lamp_track_max_ray_error_px", pipeline.track_light_distances.max_ray_error_px, 0.05, 100.0);
   stages.read<int>("hold_correction_frames", pipeline.hold_correction_frames, -1, 100000);

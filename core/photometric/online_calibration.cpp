@@ -271,7 +271,7 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
   const TrackedFrame& tracked = tracker_.process(frame);
   const std::vector<double>* log_illumination = nullptr;
   if (illumination != nullptr && (illumination->light_distance_m || illumination->track_light_distance_m)) {
-    const double power = illumination->power_w.value_or(frame.illuminator_power_w.value_or(1.0));
+    const double power = lamp_power_w(*illumination, frame.illuminator_power_w);
     log_illumination_.resize(tracked.tracks.size());
     for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
       const Eigen::Vector2d& pixel = tracked.tracks[i].position;

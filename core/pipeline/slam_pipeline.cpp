@@ -107,6 +107,17 @@ bool corrects_illuminator(PipelineMode mode) {
   return mode == PipelineMode::Illuminated || mode == PipelineMode::OdometryIlluminated;
 }
 
+std::optional<std::string> lamp_distance_backfill_problem(const PipelineOptions& options) {
+  if (!options.lamp_distance_backfill) return std::nullopt;
+  if (options.lamp_distance_source != LampDistanceSource::Tracks && options.lamp_distance_source != LampDistanceSource::HeldTracks)
+    return fmt::format("needs lamp_distance_source 'tracks' or 'held-tracks' (the track's own point), got '{}'",
+                       to_string(options.lamp_distance_source));
+  if (options.lamp_cosine_to_calibration && !options.lamp_cosine_held_per_track)
+    return std::string("fills in the lamp's cosine from the normal held per track: with lamp_cosine_to_calibration it "
+                       "needs lamp_cosine_held_per_track: true");
+  return std::nullopt;
+}
+
 SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const CameraModel> camera,
                            std::optional<PhotometricTruth> truth)
     : options_(std::move(options)), camera_(std::move(camera)), truth_(std::move(truth)) {
@@ -148,6 +159,8 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
     spdlog::info("halo factor modelled as the lamp's beam alone: {}", options_.calibration.given_part);
   } else if (options_.estimate_beam && runs_calibration(options_.mode))
     throw std::invalid_argument("calibration.estimate_beam needs a lens vignette given (calibration.given with given_holds: vignette)");
+  if (const auto problem = lamp_distance_backfill_problem(options_))
+    throw std::invalid_argument("pipeline.lamp_distance_backfill " + *problem);
   if (runs_calibration(options_.mode))
     calibration_ = std::make_unique<OnlinePhotometricCalibration>(options_.calibration);
   if (options_.mode == PipelineMode::Quality) {
@@ -178,15 +191,6 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
       track_distances_ = std::make_unique<TrackLightDistances>(*camera_, options_.track_light_distances);
     if (light_distances_ && (source == LampDistanceSource::HeldNeighbours || source == LampDistanceSource::HeldTracks))
       track_points_ = std::make_unique<TrackLightPoints>(*camera_);
-    if (options_.lamp_distance_backfill) {
-      if (source != LampDistanceSource::Tracks && source != LampDistanceSource::HeldTracks)
-        throw std::invalid_argument(fmt::format("pipeline.lamp_distance_backfill needs lamp_distance_source 'tracks' or "
-                                                "'held-tracks' (the track's own point), not '{}'",
-                                                to_string(source)));
-      if (options_.lamp_cosine_to_calibration && !options_.lamp_cosine_held_per_track)
-        throw std::invalid_argument("pipeline.lamp_distance_backfill fills in the lamp's cosine from the normal held "
-                                    "per track: it needs lamp_cosine_held_per_track with lamp_cosine_to_calibration");
-    }
     if (light_distances_ && options_.lamp_cosine_to_calibration && options_.lamp_cosine_held_per_track)
       track_cosines_ = std::make_unique<TrackLightCosines>(*camera_, options_.track_light_cosines);
     if (options_.lamp_distance_backfill && track_distances_) {
@@ -349,7 +353,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
         };
       }
       corrected = calibration_->process(frame, illumination);
-      if (backfill_) backfill_lamp_distances(frame, corrected.keyframe);
+      if (backfill_) backfill_lamp_distances(frame, illumination, corrected.keyframe);
       result.light_distance_points = light_distances_->projected_points();
       light_distance_points_ = result.light_distance_points;
     } else {
@@ -419,7 +423,7 @@ bool SlamPipeline::predict_light_distances() {
   return !light_distances_->empty();
 }
 
-void SlamPipeline::backfill_lamp_distances(const Frame& frame, bool keyframe) {
+void SlamPipeline::backfill_lamp_distances(const Frame& frame, const FrameIllumination& illumination, bool keyframe) {
   // The point a track's distances come from: its held one, else its triangulation.
   const auto point_of_track = [this](std::int64_t track_id) -> std::optional<Eigen::Vector3d> {
     if (track_points_) return track_points_->point_world(track_id);
@@ -438,7 +442,7 @@ void SlamPipeline::backfill_lamp_distances(const Frame& frame, bool keyframe) {
   for (const TrackObservation& track : tracks)
     if (!point_of_track(track.id) || (track_cosines_ && !track_cosines_->holds_normal(track.id)))
       without_distance.push_back(track.id);
-  backfill_->add_keyframe(frame.index, frame.illuminator_power_w.value_or(1.0), std::move(without_distance));
+  backfill_->add_keyframe(frame.index, lamp_power_w(illumination, frame.illuminator_power_w), std::move(without_distance));
 }
 
 void SlamPipeline::estimate_light_offset(const OdometryFrame& input, const cv::Mat& irradiance,

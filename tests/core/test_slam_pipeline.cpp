@@ -162,6 +162,32 @@ TEST(SlamPipeline, WithoutACameraTheOdometrySaysWhyItIsOff) {
   EXPECT_NE(pipeline.trajectory_view()->message.find("camera"), std::string::npos);
 }
 
+// Options built in code meet the same rule as a config file's (lamp_distance_backfill_problem;
+// the config's own test: PipelineConfig.LampDistanceBackfillNeedsTheTracksOwnPointAndAHeldNormal),
+// in every mode, with or without a camera.
+TEST(SlamPipeline, LampDistanceBackfillWithoutTheTracksOwnPointIsRefused) {
+  PipelineOptions options;
+  options.mode = PipelineMode::Illuminated;
+  options.lamp_distance_backfill = true;
+  for (const bool with_camera : {true, false}) {
+    try {
+      SlamPipeline pipeline(options, with_camera ? pinhole(64, 48) : nullptr);
+      FAIL() << "expected an error";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("pipeline.lamp_distance_backfill"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("'neighbours'"), std::string::npos) << e.what();
+    }
+  }
+  options.lamp_distance_source = LampDistanceSource::HeldTracks;
+  options.lamp_cosine_to_calibration = true;
+  options.lamp_cosine_held_per_track = false;
+  EXPECT_THROW(SlamPipeline(options, pinhole(64, 48)), std::invalid_argument);
+  options.lamp_cosine_held_per_track = true;
+  EXPECT_FALSE(lamp_distance_backfill_problem(options));
+  const SlamPipeline pipeline(options, pinhole(64, 48));
+  EXPECT_NE(pipeline.odometry(), nullptr);
+}
+
 TEST(SlamPipeline, FrameOfTheWrongSizeIsNamed) {
   PipelineOptions options;
   options.mode = PipelineMode::Odometry;

@@ -46,9 +46,16 @@ struct FrameIllumination {
   std::function<std::optional<double>(const Eigen::Vector2d& pixel)> light_cosine;
   // The same by track (the pipeline holds one normal per track); when set it replaces light_cosine.
   std::function<std::optional<double>(std::int64_t track_id, const Eigen::Vector2d& pixel)> track_light_cosine;
-  // The lamp's power; std::nullopt: Frame::illuminator_power_w, and 1 when that is missing too.
+  // The lamp's power; std::nullopt: Frame::illuminator_power_w, and 1 when that is missing too
+  // (lamp_power_w).
   std::optional<double> power_w;
 };
+
+// The power a frame's lamp factors take: the illumination's own, else the frame's
+// (Frame::illuminator_power_w), else 1 (a lamp of unknown but constant power).
+inline double lamp_power_w(const FrameIllumination& illumination, std::optional<double> frame_power_w) {
+  return illumination.power_w.value_or(frame_power_w.value_or(1.0));
+}
 
 // A tracked patch's log_illumination found after its frame was calibrated: the pipeline learns a
 // track's distance only once the track is triangulated, and then knows it for the track's earlier

@@ -215,6 +215,11 @@ struct PipelineOptions {
   }
 };
 
+// Why `options` cannot run lamp_distance_backfill (it needs the track's own point, and with the
+// cosine the track's held normal), or std::nullopt when they can. The config loader names the
+// file and line with it; SlamPipeline's constructor refuses options built in code with it.
+std::optional<std::string> lamp_distance_backfill_problem(const PipelineOptions& options);
+
 struct PipelineTimings {
   double photometric_ms = 0.0;
   double undistort_ms = 0.0;
@@ -261,7 +266,6 @@ public:
   const LightDistanceMap* light_distances() const { return light_distances_.get(); }
   const TrackLightDistances* track_light_distances() const { return track_distances_.get(); }
   const TrackLightPoints* track_light_points() const { return track_points_.get(); }
-  const KeyframeLightBackfill* keyframe_light_backfill() const { return backfill_.get(); }
   const TrackLightCosines* track_light_cosines() const { return track_cosines_.get(); }
   // The pose the last frame's lamp distances were computed for (constant velocity).
   const std::optional<SE3>& light_distance_pose() const { return predicted_T_world_cam_; }
@@ -286,7 +290,7 @@ private:
   void remember_odometry(const OdometryResult& result);
   // lamp_distance_backfill: the earlier keyframes' distances found this frame go to the
   // calibration, and a new keyframe's tracks without one start waiting.
-  void backfill_lamp_distances(const Frame& frame, bool keyframe);
+  void backfill_lamp_distances(const Frame& frame, const FrameIllumination& illumination, bool keyframe);
 
   PipelineOptions options_;
   std::shared_ptr<const CameraModel> camera_;

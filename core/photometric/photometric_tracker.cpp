@@ -188,12 +188,17 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
     next.tracks.reserve(current_.tracks.size() + static_cast<std::size_t>(options_.max_tracks));
     // Each track reads only the two pyramids and its own state: followed on two threads into
     // their slots, then kept in the same order as one thread would.
-    const auto follow = [&](const TrackObservation& old) -> std::optional<TrackObservation> {
+    const auto follow = [&](const TrackObservation& old, TrackEnd& end) -> std::optional<TrackObservation> {
       const auto forward = track_patch(previous_pyramid_, pyramid, old.position, old.position, options_);
-      if (!forward || forward->residual_rms > options_.max_residual_rms) return std::nullopt;
+      end = TrackEnd::NotFound;
+      if (!forward) return std::nullopt;
+      end = TrackEnd::Residual;
+      if (forward->residual_rms > options_.max_residual_rms) return std::nullopt;
       const auto backward = track_patch(pyramid, previous_pyramid_, forward->position, old.position, options_);
+      end = TrackEnd::ForwardBackward;
       if (!backward || (backward->position - old.position).norm() > options_.max_forward_backward_px)
         return std::nullopt;
+      end = TrackEnd::Reference;
       TrackObservation observation;
       observation.id = old.id;
       observation.position = forward->position;
@@ -208,12 +213,22 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
     };
     const std::size_t count = current_.tracks.size();
     followed_.assign(count, std::nullopt);
+    ends_.assign(count, TrackEnd::NotFound);
     split_in_two(*helper_, count, count / 2, 64, [&](std::size_t begin, std::size_t end, int) {
-      for (std::size_t i = begin; i < end; ++i) followed_[i] = follow(current_.tracks[i]);
+      for (std::size_t i = begin; i < end; ++i) followed_[i] = follow(current_.tracks[i], ends_[i]);
     });
-    for (auto& observation : followed_)
-      if (observation) next.tracks.push_back(std::move(*observation));
-    next.lost_tracks = static_cast<int>(current_.tracks.size() - next.tracks.size());
+    for (std::size_t i = 0; i < count; ++i) {
+      if (followed_[i]) {
+        next.tracks.push_back(std::move(*followed_[i]));
+        continue;
+      }
+      switch (ends_[i]) {
+        case TrackEnd::NotFound: ++next.ended.not_found; break;
+        case TrackEnd::Residual: ++next.ended.residual; break;
+        case TrackEnd::ForwardBackward: ++next.ended.forward_backward; break;
+        case TrackEnd::Reference: ++next.ended.reference; break;
+      }
+    }
   }
   next.intensity = pyramid[0];
   current_ = std::move(next);

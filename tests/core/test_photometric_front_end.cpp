@@ -135,6 +135,45 @@ TEST(PhotometricTracker, TracksSurviveAnExposureStep) {
   EXPECT_GE(survived, static_cast<int>(0.7 * static_cast<double>(first.tracks.size())));
 }
 
+// Every track of a frame is either followed into the next or counted once, with the check it
+// failed first (TrackedFrame::ended). On a plain shift the only tracks that end are the patch
+// searches that fail: corners found nearer the border than the coarsest pyramid level can
+// sample (detection keeps kPatchRadius + 2 px clear, the level with a quarter of the resolution
+// needs about 4 (kPatchRadius + 1); PhotometricTrackerOptions::skip_coarse_levels_at_border
+// follows them from the finer levels instead). On a frame of another texture most tracks end.
+TEST(PhotometricTracker, TrackEndsSayWhyTracksWereDropped) {
+  const cv::Mat base = texture(320, 240, 11);
+  const auto lost = [](const TrackedFrame& before, const TrackedFrame& after) {
+    std::vector<Eigen::Vector2d> positions;
+    for (const TrackObservation& o : before.tracks)
+      if (std::none_of(after.tracks.begin(), after.tracks.end(), [&](const TrackObservation& t) { return t.id == o.id; }))
+        positions.push_back(o.position);
+    return positions;
+  };
+  PhotometricTracker tracker;
+  const TrackedFrame first = tracker.process(make_frame(shifted(base, Eigen::Vector2d(0.0, 0.0), 1.0), 16, 0, 10.0));
+  EXPECT_EQ(first.ended.total(), 0);  // nothing to follow yet
+  const TrackedFrame second = tracker.process(make_frame(shifted(base, Eigen::Vector2d(1.5, 0.5), 1.0), 16, 1, 10.0));
+  const std::vector<Eigen::Vector2d> lost_on_shift = lost(first, second);
+  EXPECT_EQ(second.ended.total(), static_cast<int>(lost_on_shift.size()));
+  EXPECT_EQ(second.ended.not_found, second.ended.total());
+  constexpr double kCoarseMargin = 4.0 * (kPatchRadius + 1) + 4.0;  // + the shift and rounding
+  for (const Eigen::Vector2d& p : lost_on_shift)
+    EXPECT_TRUE(p.x() < kCoarseMargin || p.y() < kCoarseMargin || p.x() > 319 - kCoarseMargin || p.y() > 239 - kCoarseMargin)
+        << p.transpose();
+  PhotometricTrackerOptions near_border;
+  near_border.skip_coarse_levels_at_border = true;
+  PhotometricTracker border_tracker(near_border);
+  border_tracker.process(make_frame(shifted(base, Eigen::Vector2d(0.0, 0.0), 1.0), 16, 0, 10.0));
+  EXPECT_LT(border_tracker.process(make_frame(shifted(base, Eigen::Vector2d(1.5, 0.5), 1.0), 16, 1, 10.0)).ended.total(),
+            second.ended.total() / 4);
+  const TrackedFrame third = tracker.process(make_frame(shifted(texture(320, 240, 12), Eigen::Vector2d(0.0, 0.0), 1.0), 16, 2, 10.0));
+  EXPECT_EQ(third.ended.total(), static_cast<int>(lost(second, third).size()));
+  EXPECT_GT(third.ended.total(), static_cast<int>(0.7 * static_cast<double>(second.tracks.size())))
+      << "not found " << third.ended.not_found << ", residual " << third.ended.residual << ", forward-backward "
+      << third.ended.forward_backward << ", reference " << third.ended.reference;
+}
+
 // The drift check (PhotometricTrackerOptions::min_reference_ncc): a patch whose content slowly
 // turns into another (as a patch sliding along an edge or following an occlusion corner does)
 // passes every frame-to-frame test but is dropped once it no longer correlates with its first

@@ -8,10 +8,12 @@
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <span>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <utility>
 #include <vector>
 
@@ -120,6 +122,103 @@ struct LampFeedRun {
   std::size_t keyframe_observations = 0, keyframe_observations_with_distance = 0;
   std::int64_t keyframe_observations_filled = 0;
   double keyframe_ratio_error_median = std::nan(""), keyframe_ratio_error_p90 = std::nan("");
+  // The fate of those observations' tracks, without and with a distance (TrackFates).
+  std::string track_fates;
+};
+
+// What became of the calibration's tracks, from the simulator's truth: each track's life in
+// frames, where it ended (within 8 px of the image border, inside, or still tracked at the end),
+// and the largest angle its rays spanned at the surface point it started on (the true point, the
+// true camera centres), which the pipeline's triangulation needs to reach
+// TrackLightDistancesOptions::min_parallax_deg. Told apart for the back end's lit observations
+// without a distance and with one, it says why observations stay without one.
+class TrackFates {
+public:
+  void frame(const Simulator& simulator, const SimulatedFrame& f, const std::vector<TrackObservation>& tracks,
+             const TrackEnds& ended) {
+    ended_.not_found += ended.not_found;
+    ended_.residual += ended.residual;
+    ended_.forward_backward += ended.forward_backward;
+    ended_.reference += ended.reference;
+    const Eigen::Vector3d centre = f.T_world_cam.translation();
+    alive_.clear();
+    for (const TrackObservation& track : tracks) {
+      alive_.insert(track.id);
+      Life& life = lives_[track.id];
+      if (life.frames == 0) {
+        const auto ray = simulator.camera()->unproject(track.position);
+        const int x = std::clamp(static_cast<int>(std::lround(track.position.x())), 0, f.depth.cols - 1);
+        const int y = std::clamp(static_cast<int>(std::lround(track.position.y())), 0, f.depth.rows - 1);
+        const double z = f.depth.at<float>(y, x);
+        if (ray && ray->z() > 0.0 && z > 0.0) life.point_world = f.T_world_cam * ((z / ray->z()) * *ray);
+        life.first_centre = centre;
+      }
+      ++life.frames;
+      life.last_position = track.position;
+      if (life.point_world) {
+        const Eigen::Vector3d a = life.first_centre - *life.point_world, b = centre - *life.point_world;
+        const double angle = std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / std::numbers::pi;
+        life.max_parallax_deg = std::max(life.max_parallax_deg, angle);
+      }
+    }
+    width_ = f.frame.width();
+    height_ = f.frame.height();
+  }
+  // Over observations by track id: how many, their tracks' median life, the share that ended at
+  // the border / inside / were still tracked, their median largest parallax and the share that
+  // reached `min_parallax_deg`.
+  std::string describe(const std::vector<std::int64_t>& track_ids, double min_parallax_deg) const {
+    std::vector<double> frames, parallax;
+    int border = 0, inside = 0, alive = 0, reached = 0;
+    for (const std::int64_t id : track_ids) {
+      const auto it = lives_.find(id);
+      if (it == lives_.end()) continue;
+      const Life& life = it->second;
+      frames.push_back(life.frames);
+      parallax.push_back(life.max_parallax_deg);
+      reached += life.max_parallax_deg >= min_parallax_deg;
+      if (alive_.count(id) != 0) ++alive;
+      else if (near_border(life.last_position)) ++border;
+      else ++inside;
+    }
+    if (frames.empty()) return "none";
+    const double n = static_cast<double>(frames.size());
+    char text[320];
+    std::snprintf(text, sizeof text, "%zu: tracks lived %.0f frames (median), ended at the border %.0f %%, inside %.0f %%, "
+                  "still tracked %.0f %%; parallax spanned %.1f deg (median), >= %.1f on %.0f %%",
+                  frames.size(), median(frames), 100.0 * border / n, 100.0 * inside / n, 100.0 * alive / n, median(parallax),
+                  min_parallax_deg, 100.0 * reached / n);
+    return text;
+  }
+
+  // Why the tracks that ended, ended (the tracker's first failed check), over the sequence.
+  std::string ends() const {
+    char text[200];
+    std::snprintf(text, sizeof text, "%d tracks ended: patch not found %d, residual %d, forward-backward %d, reference %d",
+                  ended_.total(), ended_.not_found, ended_.residual, ended_.forward_backward, ended_.reference);
+    return text;
+  }
+
+private:
+  struct Life {
+    int frames = 0;
+    Eigen::Vector2d last_position = Eigen::Vector2d::Zero();
+    std::optional<Eigen::Vector3d> point_world;
+    Eigen::Vector3d first_centre = Eigen::Vector3d::Zero();
+    double max_parallax_deg = 0.0;
+  };
+  bool near_border(const Eigen::Vector2d& p) const {
+    constexpr double kMargin = 8.0;
+    return p.x() < kMargin || p.y() < kMargin || p.x() > width_ - 1 - kMargin || p.y() > height_ - 1 - kMargin;
+  }
+  static double median(std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  }
+  std::unordered_map<std::int64_t, Life> lives_;
+  std::unordered_set<std::int64_t> alive_;
+  TrackEnds ended_;
+  int width_ = 0, height_ = 0;
 };
 
 // What the calibration's factor carries of a distance error along a track: the track's first
@@ -402,6 +501,8 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_RAY_ERROR")) options.track_light_distances.max_ray_error_px = std::atof(v);
   if (source) options.lamp_distance_source = *source;
   options.lamp_distance_backfill = backfill || std::getenv("NIRSLAM_PIPELINE_BACKFILL") != nullptr;
+  // Patches near the border followed from the finer pyramid levels (photometric_tracker.hpp).
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_NEAR_BORDER")) options.lamp_mode_track_near_border = std::atoi(v) != 0;
   SlamPipeline pipeline(options, simulator.camera());
   RatioErrorAlongTracks held_ratio_errors;
   // Per keyframe: the lamp's power and each track's true log distance at its pixel.
@@ -418,11 +519,14 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   DistanceRatioProbe probe;
   CosineRatioProbe cosine_probe;
   RatioAlongTrackProbe ratio_probe;
+  TrackFates fates;
   const bool probing = std::getenv("NIRSLAM_PIPELINE_DISTANCE_PROBE") != nullptr;
   const bool probing_ratios = std::getenv("NIRSLAM_PIPELINE_RATIO_PROBE") != nullptr;
   while (auto f = simulator.next(true)) {
     truth.exposures.emplace_back(f->frame.index, *f->frame.exposure_ms * f->frame.gain.value_or(1.0));
     const PipelineFrameResult result = pipeline.process(f->frame);
+    if (pipeline.calibration())
+      fates.frame(simulator, *f, pipeline.calibration()->last_tracks(), pipeline.calibration()->last_track_ends());
     if (result.photometric && result.photometric->keyframe) {
       KeyframeTruth& k = keyframe_truth[f->frame.index];
       k.power_w = f->frame.illuminator_power_w.value_or(1.0);
@@ -490,11 +594,13 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   run.held_ratio_error_p90 = held_ratio_errors.quantile(0.9);
   run.held_observations = held_ratio_errors.size();
   RatioErrorAlongTracks keyframe_ratio_errors;
+  std::vector<std::int64_t> tracks_without_distance, tracks_with_distance;  // one entry per observation
   for (const PhotometricKeyframe& keyframe : pipeline.calibration()->stored_keyframes()) {
     const auto truth_at = keyframe_truth.find(keyframe.frame_index);
     if (!keyframe.illumination_modelled || truth_at == keyframe_truth.end()) continue;
     for (const KeyframeObservation& o : keyframe.observations) {
       ++run.keyframe_observations;
+      (std::isfinite(o.log_illumination) ? tracks_with_distance : tracks_without_distance).push_back(o.track_id);
       if (!std::isfinite(o.log_illumination)) continue;
       ++run.keyframe_observations_with_distance;
       const auto log_true = truth_at->second.log_distance.find(o.track_id);
@@ -505,6 +611,10 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
     }
   }
   run.keyframe_observations_filled = pipeline.calibration()->illumination_filled();
+  const double min_parallax_deg = options.track_light_distances.min_parallax_deg;
+  run.track_fates = "without a distance " + fates.describe(tracks_without_distance, min_parallax_deg) + "\n" +
+                    std::string(15, ' ') + "with a distance " + fates.describe(tracks_with_distance, min_parallax_deg) + "\n" +
+                    std::string(15, ' ') + fates.ends();
   run.keyframe_ratio_error_median = keyframe_ratio_errors.quantile(0.5);
   run.keyframe_ratio_error_p90 = keyframe_ratio_errors.quantile(0.9);
   run.lamp_offset = pipeline.photometric_view()->lamp_offset;
@@ -537,6 +647,7 @@ void print(const char* label, const LampFeedRun& r) {
               "along the tracks |error of log(d / d_first)| median %.4f, 90 %% %.4f\n",
               "", r.keyframe_observations_with_distance, r.keyframe_observations, static_cast<long long>(r.keyframe_observations_filled),
               r.keyframe_ratio_error_median, r.keyframe_ratio_error_p90);
+  std::printf("%-14s their tracks' fates, observations %s\n", "", r.track_fates.c_str());
 }
 
 TEST(SlamPipelineSequence, IlluminatedModeGivesTheCalibrationTheLampDistances) {

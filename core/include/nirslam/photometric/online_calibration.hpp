@@ -199,6 +199,8 @@ public:
   const std::vector<ExposureSample>& exposure_history() const { return history_; }
   // The tracks of the last processed frame, caller's thread (valid until the next process()).
   const std::vector<TrackObservation>& last_tracks() const { return tracker_.last().tracks; }
+  // Why the tracks of the frame before the last ended (photometric_tracker.hpp).
+  const TrackEnds& last_track_ends() const { return tracker_.last().ended; }
   // The model the last corrected frame used (it follows estimate(), max_correction_step_log).
   const ResponseModel& correction_response() const { return correction_response_; }
   const VignetteModel& correction_vignette() const { return correction_vignette_; }

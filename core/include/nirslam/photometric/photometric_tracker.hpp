@@ -128,6 +128,16 @@ struct TrackObservation {
   std::int32_t surface = 0;
 };
 
+// Why the previous frame's tracks that were not followed into a frame ended, by the first check
+// each failed.
+struct TrackEnds {
+  int not_found = 0;         // the patch search failed (left the image, flat patch, gain out of bounds)
+  int residual = 0;          // found, but the brightness-fitted residual exceeds max_residual_rms
+  int forward_backward = 0;  // tracked back, it did not return within max_forward_backward_px
+  int reference = 0;         // too near the border to sample, or no longer like its first look (min_reference_ncc)
+  int total() const { return not_found + residual + forward_backward + reference; }
+};
+
 struct TrackedFrame {
   std::int64_t frame_index = 0;
   int width = 0;
@@ -140,7 +150,7 @@ struct TrackedFrame {
   // The frame at full resolution, CV_32FC1 in fractions of full scale (shares the tracker's
   // buffer): the exposure estimator samples it after applying G, see exposure_estimator.hpp.
   cv::Mat intensity;
-  int lost_tracks = 0;                // of the previous frame's tracks
+  TrackEnds ended;                    // of the previous frame's tracks
   int new_tracks = 0;
   bool deformation_estimated = false; // the tracks' deformation and surface are set
 };
@@ -157,6 +167,7 @@ public:
   void reset();
 
 private:
+  enum class TrackEnd : std::uint8_t { NotFound, Residual, ForwardBackward, Reference };
   void detect(const std::vector<cv::Mat>& pyramid);
 
   PhotometricTrackerOptions options_;
@@ -168,6 +179,7 @@ private:
   // The tracks are followed on two threads (each track alone, so the result is the same);
   // copies share the helper, which serves one caller at a time.
   std::vector<std::optional<TrackObservation>> followed_;
+  std::vector<TrackEnd> ends_;  // why each track that was not followed ended
   TrackDeformation deformation_;
   std::shared_ptr<HelperThread> helper_ = std::make_shared<HelperThread>();
 };

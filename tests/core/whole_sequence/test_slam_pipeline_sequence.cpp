@@ -503,6 +503,10 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   options.lamp_distance_backfill = backfill || std::getenv("NIRSLAM_PIPELINE_BACKFILL") != nullptr;
   // Patches near the border followed from the finer pyramid levels (photometric_tracker.hpp).
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_NEAR_BORDER")) options.lamp_mode_track_near_border = std::atoi(v) != 0;
+  // The calibration tracker's checks (photometric_tracker.hpp): forward-backward distance in
+  // pixels, residual after the brightness fit in fractions of full scale.
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_FORWARD_BACKWARD")) options.calibration.tracker.max_forward_backward_px = std::atof(v);
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_RESIDUAL")) options.calibration.tracker.max_residual_rms = std::atof(v);
   SlamPipeline pipeline(options, simulator.camera());
   RatioErrorAlongTracks held_ratio_errors;
   // Per keyframe: the lamp's power and each track's true log distance at its pixel.

@@ -188,17 +188,17 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
     next.tracks.reserve(current_.tracks.size() + static_cast<std::size_t>(options_.max_tracks));
     // Each track reads only the two pyramids and its own state: followed on two threads into
     // their slots, then kept in the same order as one thread would.
-    const auto follow = [&](const TrackObservation& old, TrackEnd& end) -> std::optional<TrackObservation> {
+    const auto follow = [&](const TrackObservation& old, int TrackEnds::*& end) -> std::optional<TrackObservation> {
       const auto forward = track_patch(previous_pyramid_, pyramid, old.position, old.position, options_);
-      end = TrackEnd::NotFound;
+      end = &TrackEnds::not_found;
       if (!forward) return std::nullopt;
-      end = TrackEnd::Residual;
+      end = &TrackEnds::residual;
       if (forward->residual_rms > options_.max_residual_rms) return std::nullopt;
       const auto backward = track_patch(pyramid, previous_pyramid_, forward->position, old.position, options_);
-      end = TrackEnd::ForwardBackward;
+      end = &TrackEnds::forward_backward;
       if (!backward || (backward->position - old.position).norm() > options_.max_forward_backward_px)
         return std::nullopt;
-      end = TrackEnd::Reference;
+      end = &TrackEnds::reference;
       TrackObservation observation;
       observation.id = old.id;
       observation.position = forward->position;
@@ -213,21 +213,13 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
     };
     const std::size_t count = current_.tracks.size();
     followed_.assign(count, std::nullopt);
-    ends_.assign(count, TrackEnd::NotFound);
+    ends_.assign(count, &TrackEnds::not_found);
     split_in_two(*helper_, count, count / 2, 64, [&](std::size_t begin, std::size_t end, int) {
       for (std::size_t i = begin; i < end; ++i) followed_[i] = follow(current_.tracks[i], ends_[i]);
     });
     for (std::size_t i = 0; i < count; ++i) {
-      if (followed_[i]) {
-        next.tracks.push_back(std::move(*followed_[i]));
-        continue;
-      }
-      switch (ends_[i]) {
-        case TrackEnd::NotFound: ++next.ended.not_found; break;
-        case TrackEnd::Residual: ++next.ended.residual; break;
-        case TrackEnd::ForwardBackward: ++next.ended.forward_backward; break;
-        case TrackEnd::Reference: ++next.ended.reference; break;
-      }
+      if (followed_[i]) next.tracks.push_back(std::move(*followed_[i]));
+      else ++(next.ended.*ends_[i]);
     }
   }
   next.intensity = pyramid[0];

@@ -136,10 +136,7 @@ class TrackFates {
 public:
   void frame(const Simulator& simulator, const SimulatedFrame& f, const std::vector<TrackObservation>& tracks,
              const TrackEnds& ended) {
-    ended_.not_found += ended.not_found;
-    ended_.residual += ended.residual;
-    ended_.forward_backward += ended.forward_backward;
-    ended_.reference += ended.reference;
+    ended_ += ended;
     const Eigen::Vector3d centre = f.T_world_cam.translation();
     alive_.clear();
     for (const TrackObservation& track : tracks) {

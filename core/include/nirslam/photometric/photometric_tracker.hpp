@@ -136,6 +136,13 @@ struct TrackEnds {
   int forward_backward = 0;  // tracked back, it did not return within max_forward_backward_px
   int reference = 0;         // too near the border to sample, or no longer like its first look (min_reference_ncc)
   int total() const { return not_found + residual + forward_backward + reference; }
+  TrackEnds& operator+=(const TrackEnds& other) {
+    not_found += other.not_found;
+    residual += other.residual;
+    forward_backward += other.forward_backward;
+    reference += other.reference;
+    return *this;
+  }
 };
 
 struct TrackedFrame {
@@ -167,7 +174,6 @@ public:
   void reset();
 
 private:
-  enum class TrackEnd : std::uint8_t { NotFound, Residual, ForwardBackward, Reference };
   void detect(const std::vector<cv::Mat>& pyramid);
 
   PhotometricTrackerOptions options_;
@@ -179,7 +185,7 @@ private:
   // The tracks are followed on two threads (each track alone, so the result is the same);
   // copies share the helper, which serves one caller at a time.
   std::vector<std::optional<TrackObservation>> followed_;
-  std::vector<TrackEnd> ends_;  // why each track that was not followed ended
+  std::vector<int TrackEnds::*> ends_;  // the counter of the check each track that was not followed failed
   TrackDeformation deformation_;
   std::shared_ptr<HelperThread> helper_ = std::make_shared<HelperThread>();
 };

@@ -85,7 +85,7 @@ TEST(CameraUndistorter, UndistortedImageMatchesTheIdealPinholeImage) {
 
 TEST(CameraUndistorter, SixteenBitImagesKeepTheirRange) {
   const RadTanCamera input = euroc_cam0();
-  const Undistorter undistorter(input, RectificationSpec{RectificationMode::Crop, 640, 400, {}});
+  const Undistorter undistorter(input, RectificationSpec{RectificationMode::Crop, 640, 400});
   const cv::Mat distorted = render(input, smooth_texture, CV_16UC1, 256.0);
   const cv::Mat expected = render(undistorter.output_camera(), smooth_texture, CV_16UC1, 256.0);
   const cv::Mat undistorted = undistorter.undistort(distorted);
@@ -201,10 +201,10 @@ TEST(CameraUndistorter, FullViewContainsTheWholeInputImage) {
 
 TEST(CameraUndistorter, SameKAndExplicitOutputs) {
   const RadTanCamera input = euroc_cam0();
-  const PinholeCamera same = make_output_pinhole(input, {RectificationMode::SameK, 0, 0, {}});
+  const PinholeCamera same = make_output_pinhole(input, {RectificationMode::SameK, 0, 0});
   EXPECT_EQ(same.intrinsics(), input.intrinsics());
   EXPECT_EQ(same.width(), 752);
-  EXPECT_THROW(make_output_pinhole(input, {RectificationMode::SameK, 640, 480, {}}),
+  EXPECT_THROW(make_output_pinhole(input, {RectificationMode::SameK, 640, 480}),
                std::invalid_argument);
   const Eigen::Vector4d k(300.0, 301.0, 319.5, 239.5);
   const PinholeCamera explicit_k =

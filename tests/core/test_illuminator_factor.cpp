@@ -81,8 +81,11 @@ TEST(IlluminatorFactor, MatchesDistancesBeamAndIncidenceOfSyntheticPointPairs) {
   }
   // The target is closer (translation -0.35 along z): the same points are brighter there.
   LampFactor centre;
-  ASSERT_TRUE(lamp_factor(kCamera.unproject({160.0, 120.0}), 0.5, R, T_th.translation(), LampGeometry{true, {}, 0.0},
-                          centre));
+  // The offset spelled out: `{}` there would be Eigen's default constructor (uninitialised), not
+  // the member's default of zero; its garbage made this factor NaN in an -Og build.
+  const LampGeometry lamp_at_the_camera{true, Eigen::Vector3d::Zero(), 0.0};
+  ASSERT_TRUE(
+      lamp_factor(kCamera.unproject({160.0, 120.0}), 0.5, R, T_th.translation(), lamp_at_the_camera, centre));
   EXPECT_GT(centre.g, 1.1);
 }
 

@@ -37,11 +37,15 @@ section "Debian package: build, install, run from outside the source tree, remov
 packaging/check-package.sh build
 
 section "AddressSanitizer + UndefinedBehaviorSanitizer: build"
-# -O1 (what the AddressSanitizer documentation recommends for usable speed): the unit tests ran
-# several times faster than at -O0 (60 against about 400 s of wall, 2026-12-02), for 12-25 % more
-# compile CPU per file. GCC 12 gives a false -Wmaybe-uninitialized inside std::variant at -O1
-# (tests/worker/test_worker.cpp), so this stage alone leaves that warning out; the Release stage
-# keeps it. -g1 (line tables, function names: what sanitizer reports print) instead of -g.
+# -Og rather than the -O1 the AddressSanitizer documentation suggests: the build took a third less
+# (421 against 673 s of wall, 755 against 1213 s of CPU; -O1's inlining and scalar replacement of
+# Eigen's small matrices were most of it) for tests 36 % slower (147 against 108 s of CPU),
+# 2026-12-06; both run several times faster than at -O0 (60 against about 400 s of wall,
+# 2026-12-02). Code compiled unlike the Release stage's also shows what one optimiser hides: -Og
+# found a test reading an uninitialised Eigen vector. GCC 12 gives a false -Wmaybe-uninitialized
+# inside std::variant when optimising (tests/worker/test_worker.cpp), so this stage alone leaves
+# that warning out; the Release stage keeps it. -g1 (line tables, function names: what sanitizer
+# reports print) instead of -g.
 # Four of UndefinedBehaviorSanitizer's checks are left out here, which together cost 30 % of
 # photometric_backend.cpp's compile (35 against 50 s) and 8 % of the core library's (613 against
 # 669 s of CPU; with Ninja too, this stage's build 493 against 569 s of wall, 2026-12-03), and
@@ -52,16 +56,18 @@ section "AddressSanitizer + UndefinedBehaviorSanitizer: build"
 # has a handful of interfaces, no downcasts). Signed overflow, shifts, bounds, division by zero,
 # invalid bool / enum values, missing returns and unreachable code are still checked.
 configure build-asan -DCMAKE_BUILD_TYPE=Debug -DNIRSLAM_SANITIZE=address,undefined -DNIRSLAM_BUILD_UI=OFF \
-  "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -g1 -Wno-maybe-uninitialized -fno-sanitize=null,pointer-overflow,alignment,vptr" \
-  "-DCMAKE_C_FLAGS_DEBUG=-O1 -g1 -fno-sanitize=null,pointer-overflow,alignment,vptr" \
-  -DNIRSLAM_TEST_SHARDS=2 -DNIRSLAM_WHOLE_SEQUENCE_TESTS=OFF
+  "-DCMAKE_CXX_FLAGS_DEBUG=-Og -g1 -Wno-maybe-uninitialized -fno-sanitize=null,pointer-overflow,alignment,vptr" \
+  "-DCMAKE_C_FLAGS_DEBUG=-Og -g1 -fno-sanitize=null,pointer-overflow,alignment,vptr" \
+  -DNIRSLAM_TEST_SHARDS=4 -DNIRSLAM_WHOLE_SEQUENCE_TESTS=OFF
 cmake --build build-asan -j"$jobs" --target nirslam_core_tests nirslam_worker_tests
 section "AddressSanitizer + UndefinedBehaviorSanitizer: unit tests"
-# Each test binary runs as two GoogleTest shards (ctest entries) rather than one process per test:
+# Each test binary runs as four GoogleTest shards (ctest entries) rather than one process per test:
 # an ASan process spends about half a second loading its ~150 shared libraries, and 406 of them
-# made this stage 169-214 s of wall; as shards it is about 40 s. Every test still runs in its own
-# process in the Release stage. A failing shard prints its whole log; the failing test's name is
-# in it ("[  FAILED  ]").
+# made this stage 169-214 s of wall; as shards it is about 40 s. Four rather than two: GoogleTest
+# deals the tests out in turn, and the shard with the longest test (the geometric start's replay,
+# about a third of the core tests' time) ran 73 s while the other ran 29 (2026-12-05). Every test
+# still runs in its own process in the Release stage. A failing shard prints its whole log; the
+# failing test's name is in it ("[  FAILED  ]").
 # Whole simulated sequences (tests/core/whole_sequence/: the accuracy tables, the odometry's and
 # the pipeline's sequences, the simulated wall approaches of the lamp factor, whose residuals and
 # Jacobians have unit tests that stay) are left to the Release run and out of this build: a Debug

@@ -22,6 +22,7 @@
 #include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/photometric/response_model.hpp"
 #include "nirslam/photometric/exposure_scale.hpp"
+#include "nirslam/photometric/photometric_tracker.hpp"
 #include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/sim/scene.hpp"
 #include "nirslam/sim/simulator.hpp"
@@ -130,8 +131,9 @@ struct LampFeedRun {
 // frames, where it ended (within 8 px of the image border, inside, or still tracked at the end),
 // and the largest angle its rays spanned at the surface point it started on (the true point, the
 // true camera centres), which the pipeline's triangulation needs to reach
-// TrackLightDistancesOptions::min_parallax_deg. Told apart for the back end's lit observations
-// without a distance and with one, it says why observations stay without one.
+// TrackLightDistancesOptions::min_parallax_deg, and whether it began on a depth edge. Told apart
+// for the back end's lit observations without a distance and with one, it says why observations
+// stay without one.
 class TrackFates {
 public:
   void frame(const Simulator& simulator, const SimulatedFrame& f, const std::vector<TrackObservation>& tracks,
@@ -149,6 +151,7 @@ public:
         const double z = f.depth.at<float>(y, x);
         if (ray && ray->z() > 0.0 && z > 0.0) life.point_world = f.T_world_cam * ((z / ray->z()) * *ray);
         life.first_centre = centre;
+        life.born_at_depth_edge = near_depth_edge(f.depth, x, y);
       }
       ++life.frames;
       life.last_position = track.position;
@@ -163,10 +166,10 @@ public:
   }
   // Over observations by track id: how many, their tracks' median life, the share that ended at
   // the border / inside / were still tracked, their median largest parallax and the share that
-  // reached `min_parallax_deg`.
+  // reached `min_parallax_deg`, and the share whose track began on a depth edge.
   std::string describe(const std::vector<std::int64_t>& track_ids, double min_parallax_deg) const {
     std::vector<double> frames, parallax;
-    int border = 0, inside = 0, alive = 0, reached = 0;
+    int border = 0, inside = 0, alive = 0, reached = 0, depth_edge = 0;
     for (const std::int64_t id : track_ids) {
       const auto it = lives_.find(id);
       if (it == lives_.end()) continue;
@@ -174,17 +177,18 @@ public:
       frames.push_back(life.frames);
       parallax.push_back(life.max_parallax_deg);
       reached += life.max_parallax_deg >= min_parallax_deg;
+      depth_edge += life.born_at_depth_edge;
       if (alive_.count(id) != 0) ++alive;
       else if (near_border(life.last_position)) ++border;
       else ++inside;
     }
     if (frames.empty()) return "none";
     const double n = static_cast<double>(frames.size());
-    char text[320];
+    char text[400];
     std::snprintf(text, sizeof text, "%zu: tracks lived %.0f frames (median), ended at the border %.0f %%, inside %.0f %%, "
-                  "still tracked %.0f %%; parallax spanned %.1f deg (median), >= %.1f on %.0f %%",
+                  "still tracked %.0f %%; parallax spanned %.1f deg (median), >= %.1f on %.0f %%; began on a depth edge %.0f %%",
                   frames.size(), median(frames), 100.0 * border / n, 100.0 * inside / n, 100.0 * alive / n, median(parallax),
-                  min_parallax_deg, 100.0 * reached / n);
+                  min_parallax_deg, 100.0 * reached / n, 100.0 * depth_edge / n);
     return text;
   }
 
@@ -203,7 +207,29 @@ private:
     std::optional<Eigen::Vector3d> point_world;
     Eigen::Vector3d first_centre = Eigen::Vector3d::Zero();
     double max_parallax_deg = 0.0;
+    bool born_at_depth_edge = false;
   };
+  // Whether the patch around pixel (x, y), with two pixels to spare, holds a depth step. A plane's
+  // inverse depth is affine in the pinhole image, so its second difference along a row or a column
+  // is zero however slanted the plane; an occluding contour or a crease makes it jump. Steps of
+  // more than 1 % of the inverse depth count. Such a patch holds two surfaces that move apart in
+  // the image and sit at two distances from the lamp.
+  static bool near_depth_edge(const cv::Mat& depth, int x, int y) {
+    constexpr int kReach = kPatchRadius + 2;
+    const auto inverse = [&](int u, int v) {
+      const float z = depth.at<float>(v, u);
+      return z > 0.0f ? 1.0f / z : 0.0f;
+    };
+    for (int v = std::max(y - kReach, 1); v <= std::min(y + kReach, depth.rows - 2); ++v)
+      for (int u = std::max(x - kReach, 1); u <= std::min(x + kReach, depth.cols - 2); ++u) {
+        const float w = inverse(u, v);
+        if (!(w > 0.0f)) return true;  // a ray into the void beside a surface
+        if (std::abs(inverse(u - 1, v) - 2.0f * w + inverse(u + 1, v)) > 0.01f * w ||
+            std::abs(inverse(u, v - 1) - 2.0f * w + inverse(u, v + 1)) > 0.01f * w)
+          return true;
+      }
+    return false;
+  }
   bool near_border(const Eigen::Vector2d& p) const {
     constexpr double kMargin = 8.0;
     return p.x() < kMargin || p.y() < kMargin || p.x() > width_ - 1 - kMargin || p.y() > height_ - 1 - kMargin;

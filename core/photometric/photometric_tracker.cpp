@@ -48,9 +48,16 @@ bool sample_patch(const cv::Mat& image, const Eigen::Vector2d& position, PatchSa
   return true;
 }
 
+double frame_pair_gain(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>& b) {
+  if (a.empty() || b.empty()) return 1.0;
+  const double mean_a = cv::mean(a.back())[0];
+  const double mean_b = cv::mean(b.back())[0];
+  return mean_a > 0.0 && mean_b > 0.0 ? mean_b / mean_a : 1.0;
+}
+
 std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>& b,
                                       const Eigen::Vector2d& from, const Eigen::Vector2d& guess,
-                                      const PhotometricTrackerOptions& options) {
+                                      const PhotometricTrackerOptions& options, std::optional<double> pair_gain) {
   const int levels = static_cast<int>(std::min(a.size(), b.size()));
   if (levels == 0) return std::nullopt;
   // pyrDown keeps every second pixel, so level l sees full-resolution position x at x / 2^l.
@@ -102,8 +109,8 @@ std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::
     const double sd0 = std::sqrt((t.array() - static_cast<float>(mean0)).square().mean());
     const double sd1 = std::sqrt((current.array() - static_cast<float>(mean1)).square().mean());
     if (!(sd0 > 1e-6)) return std::nullopt;
-    double gain = sd1 / sd0;
-    double bias = mean1 - gain * mean0;
+    double gain = pair_gain ? *pair_gain : sd1 / sd0;
+    double bias = pair_gain ? 0.0 : mean1 - gain * mean0;
 
     for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
       if (iteration > 0 && !sample_patch(image1, p1, current)) return std::nullopt;
@@ -119,7 +126,9 @@ std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::
         squared += r * r;
       }
       result.residual_rms = std::sqrt(squared / kPatchPixels);
-      const Eigen::Vector4d step = -H.ldlt().solve(g);
+      Eigen::Vector4d step = Eigen::Vector4d::Zero();
+      if (pair_gain) step.head<2>() = -H.topLeftCorner<2, 2>().ldlt().solve(g.head<2>());
+      else step = -H.ldlt().solve(g);
       if (!step.allFinite()) return std::nullopt;
       p1 += step.head<2>();
       gain += step[2];
@@ -186,15 +195,18 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
 
   if (!previous_pyramid_.empty() && previous_pyramid_[0].size() == pyramid[0].size()) {
     next.tracks.reserve(current_.tracks.size() + static_cast<std::size_t>(options_.max_tracks));
+    const std::optional<double> pair_gain =
+        options_.frame_pair_gain ? std::optional<double>(frame_pair_gain(previous_pyramid_, pyramid)) : std::nullopt;
     // Each track reads only the two pyramids and its own state: followed on two threads into
     // their slots, then kept in the same order as one thread would.
     const auto follow = [&](const TrackObservation& old, int TrackEnds::*& end) -> std::optional<TrackObservation> {
-      const auto forward = track_patch(previous_pyramid_, pyramid, old.position, old.position, options_);
+      const auto forward = track_patch(previous_pyramid_, pyramid, old.position, old.position, options_, pair_gain);
       end = &TrackEnds::not_found;
       if (!forward) return std::nullopt;
       end = &TrackEnds::residual;
       if (forward->residual_rms > options_.max_residual_rms) return std::nullopt;
-      const auto backward = track_patch(pyramid, previous_pyramid_, forward->position, old.position, options_);
+      const auto backward = track_patch(pyramid, previous_pyramid_, forward->position, old.position, options_,
+                                        pair_gain ? std::optional<double>(1.0 / *pair_gain) : std::nullopt);
       end = &TrackEnds::forward_backward;
       if (!backward || (backward->position - old.position).norm() > options_.max_forward_backward_px)
         return std::nullopt;

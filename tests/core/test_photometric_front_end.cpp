@@ -76,6 +76,39 @@ TEST(PhotometricTracker, RecoversSubpixelShiftUnderGainChange) {
   }
 }
 
+// One gain for the frame pair (PhotometricTrackerOptions::frame_pair_gain): the images' mean ratio
+// is the exposure ratio here, and held at it each patch fits its translation alone, as precisely
+// as with its own gain and bias; the reported gain is the pair's.
+TEST(PhotometricTracker, FramePairGainFollowsTheShiftWithOneGain) {
+  const cv::Mat base = texture(240, 200, 7);
+  const Eigen::Vector2d shift(1.37, -0.62);
+  PhotometricTrackerOptions options;
+  const auto pyramid0 = build_intensity_pyramid(shifted(base, Eigen::Vector2d::Zero(), 1.0), 16, options.pyramid_levels);
+  const auto pyramid1 = build_intensity_pyramid(shifted(base, shift, 1.6), 16, options.pyramid_levels);
+  const double pair_gain = frame_pair_gain(pyramid0, pyramid1);
+  EXPECT_NEAR(pair_gain, 1.6, 0.01);
+  EXPECT_NEAR(frame_pair_gain(pyramid1, pyramid0), 1.0 / pair_gain, 1e-9);
+  double worst = 0.0;
+  for (int y = 40; y <= 160; y += 20)
+    for (int x = 40; x <= 200; x += 20) {
+      const Eigen::Vector2d from(x, y);
+      const auto track = track_patch(pyramid0, pyramid1, from, from, options, pair_gain);
+      ASSERT_TRUE(track.has_value()) << x << "," << y;
+      EXPECT_EQ(track->brightness_gain, pair_gain);
+      EXPECT_EQ(track->brightness_bias, 0.0);
+      EXPECT_LT(track->residual_rms, 0.01);
+      worst = std::max(worst, (track->position - from - shift).norm());
+    }
+  EXPECT_LT(worst, 0.1);
+  // Held at half the pair's gain, no patch is followed with a residual the tracker would keep.
+  for (int y = 40; y <= 160; y += 20)
+    for (int x = 40; x <= 200; x += 20) {
+      const Eigen::Vector2d from(x, y);
+      const auto wrong = track_patch(pyramid0, pyramid1, from, from, options, 0.5 * pair_gain);
+      EXPECT_TRUE(!wrong || wrong->residual_rms > options.max_residual_rms) << x << "," << y;
+    }
+}
+
 // Patches 7-18 px from the border, where the coarsest level (a quarter of the resolution) has no
 // room for the patch: ended without the option, refined from the finer levels with it.
 TEST(PhotometricTracker, PatchesNearTheBorderAreTrackedFromTheFinerLevels) {

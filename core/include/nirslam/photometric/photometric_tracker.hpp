@@ -76,8 +76,10 @@ struct PhotometricTrackerOptions {
   // while each patch fits its translation alone, as the gain-robust KLT of Kim et al. does; off:
   // each patch fits its own gain and bias. On a patch that is mostly a brightness ramp a shift and
   // a bias change look alike, so the per-patch fit slides along the ramp: against the simulator's
-  // truth, fresh street corners followed within 1 px 45 % per patch, 63 % with the pair's gain
-  // (README "Illuminator correction", session 35).
+  // truth, fresh street corners followed within 1 px 45 % per patch, 63 % with the pair's gain.
+  // Off by default: under the co-located lamp a patch's brightness ratio depends on its distance,
+  // and the pipeline's co-lit rows lost as many tracks to the residual test as they saved (README
+  // "Illuminator correction", session 35).
   bool frame_pair_gain = false;
   double black_level = 0.03;               // for the frame's black / saturated fractions
   double saturation_level = 0.97;

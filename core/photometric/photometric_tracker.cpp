@@ -128,7 +128,7 @@ std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::
       result.residual_rms = std::sqrt(squared / kPatchPixels);
       Eigen::Vector4d step = Eigen::Vector4d::Zero();
       if (pair_gain) step.head<2>() = -H.topLeftCorner<2, 2>().ldlt().solve(g.head<2>());
-      else step = -H.ldlt().solve(g);
+      else step = -H.ldlt().solve(g);  // with a pair gain, gain and bias stay where they are
       if (!step.allFinite()) return std::nullopt;
       p1 += step.head<2>();
       gain += step[2];

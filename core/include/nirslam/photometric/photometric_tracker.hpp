@@ -111,7 +111,7 @@ std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::
                                       std::optional<double> pair_gain = std::nullopt);
 
 // The brightness gain from pyramid `a` to pyramid `b`: the ratio of their coarsest levels' means
-// (1 when `a` is black).
+// (1 when either is black: no ratio to hold).
 double frame_pair_gain(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>& b);
 
 // Bilinear sample of a CV_32FC1 image; the caller guarantees 0 <= x < cols - 1, 0 <= y < rows - 1.

@@ -135,6 +135,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read<double>("lamp_mode_vignette_rim_curvature_weight", pipeline.lamp_mode_vignette_rim_curvature_weight, 0.0, 1e6);
   calibration.read_flag("lamp_mode_track_near_border", pipeline.lamp_mode_track_near_border);
   calibration.read<double>("min_reference_ncc", pipeline.calibration.tracker.min_reference_ncc, 0.0, 1.0);
+  calibration.read<double>("min_corner_isotropy", pipeline.calibration.tracker.min_corner_isotropy, 0.0, 1.0);
   calibration.read<double>("lamp_mode_min_reference_ncc", pipeline.lamp_mode_min_reference_ncc, 0.0, 1.0);
   calibration.read_flag("lamp_mode_exposure_follows_surface", pipeline.lamp_mode_exposure_follows_surface);
   calibration.read<double>("max_residual_grey", pipeline.calibration.gate.max_residual_rms, 0.0, 255.0);

@@ -55,6 +55,31 @@ double frame_pair_gain(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>
   return mean_a > 0.0 && mean_b > 0.0 ? mean_b / mean_a : 1.0;
 }
 
+double corner_isotropy(const std::vector<cv::Mat>& pyramid, const Eigen::Vector2d& position) {
+  double isotropy = 1.0;
+  for (std::size_t level = 0; level < pyramid.size(); ++level) {
+    const cv::Mat& image = pyramid[level];
+    const Eigen::Vector2d p = position / static_cast<double>(1 << level);
+    if (!fits(image, p, kPatchRadius + 1)) {
+      if (level == 0) return 0.0;
+      break;  // coarser levels do not fit either; the tracker skips them or drops the track there
+    }
+    Eigen::Matrix2d structure = Eigen::Matrix2d::Zero();
+    for (int i = -kPatchRadius; i <= kPatchRadius; ++i)
+      for (int j = -kPatchRadius; j <= kPatchRadius; ++j) {
+        const double x = p.x() + j, y = p.y() + i;
+        const Eigen::Vector2d gradient(0.5 * (bilinear_sample(image, x + 1.0, y) - bilinear_sample(image, x - 1.0, y)),
+                                       0.5 * (bilinear_sample(image, x, y + 1.0) - bilinear_sample(image, x, y - 1.0)));
+        structure += gradient * gradient.transpose();
+      }
+    const double half_trace = 0.5 * structure.trace();
+    const double spread = std::sqrt(std::max(half_trace * half_trace - structure.determinant(), 0.0));
+    if (!(half_trace + spread > 0.0)) return 0.0;
+    isotropy = std::min(isotropy, (half_trace - spread) / (half_trace + spread));
+  }
+  return isotropy;
+}
+
 std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>& b,
                                       const Eigen::Vector2d& from, const Eigen::Vector2d& guess,
                                       const PhotometricTrackerOptions& options, std::optional<double> pair_gain) {
@@ -275,6 +300,9 @@ void PhotometricTracker::detect(const std::vector<cv::Mat>& pyramid) {
     observation.position = Eigen::Vector2d(corner.x, corner.y);
     int& count = bucket_counts_[bucket(observation.position)];
     if (count >= per_cell) continue;
+    if (options_.min_corner_isotropy > 0.0 &&
+        !(corner_isotropy(pyramid, observation.position) >= options_.min_corner_isotropy))
+      continue;
     if (!sample_patch(image, observation.position, observation.samples)) continue;
     observation.reference = observation.samples;
     observation.id = next_id_++;

@@ -109,6 +109,57 @@ TEST(PhotometricTracker, FramePairGainFollowsTheShiftWithOneGain) {
     }
 }
 
+// Drawn shapes on a mid-grey background, blurred a little as a lens would: a bright square (its
+// corner is a corner at every level, its edge's middle at none), and a small dark dot 7 px from
+// a long straight edge, which is a corner to a 9 x 9 patch at full resolution while the coarse
+// levels, where the patch spans 36 x 36 px, see mostly the edge.
+cv::Mat shapes() {
+  cv::Mat image(200, 240, CV_32F, cv::Scalar(0.4f));
+  cv::rectangle(image, cv::Rect(40, 60, 70, 70), cv::Scalar(0.8f), cv::FILLED);
+  cv::rectangle(image, cv::Rect(167, 0, 73, 200), cv::Scalar(0.7f), cv::FILLED);
+  cv::rectangle(image, cv::Rect(159, 99, 3, 3), cv::Scalar(0.1f), cv::FILLED);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.8);
+  cv::Mat out;
+  image.convertTo(out, CV_16U, 65535.0);
+  return out;
+}
+
+TEST(PhotometricTracker, CornerIsotropyTellsCornersFromEdgesAtEveryLevel) {
+  PhotometricTrackerOptions options;
+  const auto pyramid = build_intensity_pyramid(shapes(), 16, options.pyramid_levels);
+  const double square_corner = corner_isotropy(pyramid, {40.0, 60.0});
+  const double square_edge = corner_isotropy(pyramid, {75.0, 60.0});
+  const double dot_by_edge = corner_isotropy(pyramid, {160.0, 100.0});
+  const double flat = corner_isotropy(pyramid, {150.0, 180.0});
+  const double outside = corner_isotropy(pyramid, {2.0, 100.0});
+  // The dot by an edge alone at full resolution.
+  const double dot_by_edge_fine = corner_isotropy(std::vector<cv::Mat>{pyramid[0]}, {160.0, 100.0});
+  std::printf("isotropy: square corner %.3f, edge %.4f, dot by an edge %.3f (full resolution alone %.3f), flat %.3f\n",
+              square_corner, square_edge, dot_by_edge, dot_by_edge_fine, flat);
+  EXPECT_GT(square_corner, 0.5);
+  EXPECT_LT(square_edge, 0.01);
+  EXPECT_GT(dot_by_edge_fine, 0.1);
+  EXPECT_LT(dot_by_edge, 0.5 * dot_by_edge_fine);
+  EXPECT_EQ(flat, 0.0);
+  EXPECT_EQ(outside, 0.0);
+
+  // Detection keeps only corners at or above the bound; the dot by the edge is not one of them.
+  const auto detect = [&](double min_isotropy) {
+    PhotometricTrackerOptions o;
+    o.min_corner_isotropy = min_isotropy;
+    PhotometricTracker tracker(o);
+    return tracker.process(make_frame(shapes(), 16, 0, std::nullopt)).tracks;
+  };
+  const auto near_dot = [](const TrackObservation& t) { return (t.position - Eigen::Vector2d(160.0, 100.0)).norm() < 4.0; };
+  const auto all = detect(0.0);
+  EXPECT_TRUE(std::any_of(all.begin(), all.end(), near_dot));
+  const auto isotropic = detect(0.5 * (dot_by_edge + dot_by_edge_fine));
+  ASSERT_FALSE(isotropic.empty());
+  EXPECT_LT(isotropic.size(), all.size());
+  EXPECT_FALSE(std::any_of(isotropic.begin(), isotropic.end(), near_dot));
+  for (const TrackObservation& t : isotropic) EXPECT_GE(corner_isotropy(pyramid, t.position), 0.5 * (dot_by_edge + dot_by_edge_fine));
+}
+
 // Patches 7-18 px from the border, where the coarsest level (a quarter of the resolution) has no
 // room for the patch: ended without the option, refined from the finer levels with it.
 TEST(PhotometricTracker, PatchesNearTheBorderAreTrackedFromTheFinerLevels) {

@@ -66,6 +66,7 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
                    PipelineOptions{}.lamp_mode_vignette_rim_curvature_weight);
   EXPECT_EQ(config.worker.pipeline.lamp_mode_track_near_border, PipelineOptions{}.lamp_mode_track_near_border);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_reference_ncc, PhotometricTrackerOptions{}.min_reference_ncc);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_corner_isotropy, PhotometricTrackerOptions{}.min_corner_isotropy);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_min_reference_ncc, PipelineOptions{}.lamp_mode_min_reference_ncc);
   EXPECT_EQ(config.worker.pipeline.calibration.exposure.follow_deformation,
             OnlineCalibrationOptions{}.exposure.follow_deformation);
@@ -200,7 +201,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  lamp_mode_track_near_border: false\n  exposure_follows_surface: false\n"
                 "  lamp_mode_exposure_follows_surface: true\n  keyframes_by_reported_exposure: false\n"
                 "  residual: observed\n  lamp_mode_residual: predicted\n"
-                "  min_reference_ncc: 0.7\n  lamp_mode_min_reference_ncc: 0.9\n"
+                "  min_reference_ncc: 0.7\n  lamp_mode_min_reference_ncc: 0.9\n  min_corner_isotropy: 0.1\n"
                 "  point_rejection_sigmas: 3.5\n  lamp_mode_point_rejection_sigmas: 2\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_FALSE(config.worker.pipeline_mode_automatic) << "a named mode is not automatic";
@@ -214,6 +215,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_TRUE(config.worker.pipeline.calibration.tracker.skip_coarse_levels_at_border);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_reference_ncc, 0.7);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_min_reference_ncc, 0.9);
+  EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_corner_isotropy, 0.1);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.point_rejection_sigmas, 3.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.lit_point_rejection_sigmas, 2.0);
   EXPECT_FALSE(config.worker.pipeline.calibration.keyframes_follow_deformation);

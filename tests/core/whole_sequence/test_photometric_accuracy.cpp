@@ -244,6 +244,7 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
     options.backend.vignette_steps = options.backend.lit_vignette_steps = chosen;
   }
   if (const char* ncc = std::getenv("NIRSLAM_PHOTOMETRIC_MIN_NCC")) options.tracker.min_reference_ncc = std::atof(ncc);
+  if (const char* iso = std::getenv("NIRSLAM_PHOTOMETRIC_CORNER_ISOTROPY")) options.tracker.min_corner_isotropy = std::atof(iso);
   // Tracks near the image border refined from the finer pyramid levels (photometric_tracker.hpp).
   if (const char* skip = std::getenv("NIRSLAM_PHOTOMETRIC_BORDER_TRACKS")) options.tracker.skip_coarse_levels_at_border = std::atoi(skip) != 0;
   // The back end's residual form (photometric_backend.hpp, PhotometricResidualForm): "predicted"

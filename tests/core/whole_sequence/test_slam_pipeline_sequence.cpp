@@ -532,6 +532,7 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_RESIDUAL")) options.calibration.tracker.max_residual_rms = std::atof(v);
   // One brightness gain per frame pair instead of a gain and bias per patch.
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_FRAME_GAIN")) options.calibration.tracker.frame_pair_gain = std::atoi(v) != 0;
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_ISOTROPY")) options.calibration.tracker.min_corner_isotropy = std::atof(v);
   SlamPipeline pipeline(options, simulator.camera());
   RatioErrorAlongTracks held_ratio_errors;
   // Per keyframe: the lamp's power and each track's true log distance at its pixel.

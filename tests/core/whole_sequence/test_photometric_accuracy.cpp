@@ -245,6 +245,7 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
   }
   if (const char* ncc = std::getenv("NIRSLAM_PHOTOMETRIC_MIN_NCC")) options.tracker.min_reference_ncc = std::atof(ncc);
   if (const char* iso = std::getenv("NIRSLAM_PHOTOMETRIC_CORNER_ISOTROPY")) options.tracker.min_corner_isotropy = std::atof(iso);
+  if (const char* gain = std::getenv("NIRSLAM_PHOTOMETRIC_FRAME_GAIN")) options.tracker.frame_pair_gain = std::atoi(gain) != 0;
   // Tracks near the image border refined from the finer pyramid levels (photometric_tracker.hpp).
   if (const char* skip = std::getenv("NIRSLAM_PHOTOMETRIC_BORDER_TRACKS")) options.tracker.skip_coarse_levels_at_border = std::atoi(skip) != 0;
   // The back end's residual form (photometric_backend.hpp, PhotometricResidualForm): "predicted"

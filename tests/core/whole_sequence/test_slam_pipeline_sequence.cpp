@@ -26,6 +26,7 @@
 #include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/sim/scene.hpp"
 #include "nirslam/sim/simulator.hpp"
+#include "depth_edge.hpp"
 #include "response_error.hpp"
 
 namespace nirslam {
@@ -151,7 +152,7 @@ public:
         const double z = f.depth.at<float>(y, x);
         if (ray && ray->z() > 0.0 && z > 0.0) life.point_world = f.T_world_cam * ((z / ray->z()) * *ray);
         life.first_centre = centre;
-        life.born_at_depth_edge = near_depth_edge(f.depth, x, y);
+        life.born_at_depth_edge = test_depth_edge::patch_on_depth_edge(f.depth, x, y);
       }
       ++life.frames;
       life.last_position = track.position;
@@ -209,27 +210,6 @@ private:
     double max_parallax_deg = 0.0;
     bool born_at_depth_edge = false;
   };
-  // Whether the patch around pixel (x, y), with two pixels to spare, holds a depth step. A plane's
-  // inverse depth is affine in the pinhole image, so its second difference along a row or a column
-  // is zero however slanted the plane; an occluding contour or a crease makes it jump. Steps of
-  // more than 1 % of the inverse depth count. Such a patch holds two surfaces that move apart in
-  // the image and sit at two distances from the lamp.
-  static bool near_depth_edge(const cv::Mat& depth, int x, int y) {
-    constexpr int kReach = kPatchRadius + 2;
-    const auto inverse = [&](int u, int v) {
-      const float z = depth.at<float>(v, u);
-      return z > 0.0f ? 1.0f / z : 0.0f;
-    };
-    for (int v = std::max(y - kReach, 1); v <= std::min(y + kReach, depth.rows - 2); ++v)
-      for (int u = std::max(x - kReach, 1); u <= std::min(x + kReach, depth.cols - 2); ++u) {
-        const float w = inverse(u, v);
-        if (!(w > 0.0f)) return true;  // a ray into the void beside a surface
-        if (std::abs(inverse(u - 1, v) - 2.0f * w + inverse(u + 1, v)) > 0.01f * w ||
-            std::abs(inverse(u, v - 1) - 2.0f * w + inverse(u, v + 1)) > 0.01f * w)
-          return true;
-      }
-    return false;
-  }
   bool near_border(const Eigen::Vector2d& p) const {
     constexpr double kMargin = 8.0;
     return p.x() < kMargin || p.y() < kMargin || p.x() > width_ - 1 - kMargin || p.y() > height_ - 1 - kMargin;

@@ -27,6 +27,7 @@
 #include "nirslam/photometric/photometric_tracker.hpp"
 #include "nirslam/sim/scene.hpp"
 #include "nirslam/sim/simulator.hpp"
+#include "depth_edge.hpp"
 
 namespace nirslam::tracker_truth_test {
 
@@ -65,25 +66,6 @@ double quantile(std::vector<double> v, double q) {
 
 double share(const std::vector<bool>& v) {
   return v.empty() ? std::nan("") : static_cast<double>(std::count(v.begin(), v.end(), true)) / static_cast<double>(v.size());
-}
-
-// A depth step (second difference of the inverse depth over 1 % of it) within the patch and two
-// pixels around it, as the co-lit rows' TrackFates tells it.
-bool on_depth_edge(const cv::Mat& depth, int x, int y) {
-  constexpr int kReach = kPatchRadius + 2;
-  const auto inverse = [&](int u, int v) {
-    const float z = depth.at<float>(v, u);
-    return z > 0.0f ? 1.0f / z : 0.0f;
-  };
-  for (int v = std::max(y - kReach, 1); v <= std::min(y + kReach, depth.rows - 2); ++v)
-    for (int u = std::max(x - kReach, 1); u <= std::min(x + kReach, depth.cols - 2); ++u) {
-      const float w = inverse(u, v);
-      if (!(w > 0.0f)) return true;
-      if (std::abs(inverse(u - 1, v) - 2.0f * w + inverse(u + 1, v)) > 0.01f * w ||
-          std::abs(inverse(u, v - 1) - 2.0f * w + inverse(u, v + 1)) > 0.01f * w)
-        return true;
-    }
-  return false;
 }
 
 cv::Mat to_8bit(const Frame& frame) {
@@ -173,7 +155,7 @@ private:
     const double z = f.depth.at<float>(y, x);
     const auto ray = camera_.unproject(t.position);
     if (ray && ray->z() > 0.0 && z > 0.0) life.point_world = f.T_world_cam * ((z / ray->z()) * *ray);
-    life.on_depth_edge = on_depth_edge(f.depth, x, y);
+    life.on_depth_edge = test_depth_edge::patch_on_depth_edge(f.depth, x, y);
     life.near_border = near_border(t.position);
     life.isotropy = corner_isotropy(pyramid, t.position);
   }

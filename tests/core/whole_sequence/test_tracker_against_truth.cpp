@@ -49,6 +49,8 @@ struct TrackerTruthFigures {
   std::vector<double> from_truth_by_isotropy;
   std::vector<int> fresh_by_isotropy;
   double born_on_depth_edge = 0.0;  // share of the tracks
+  // The chance to end at the first follow, for tracks born on a depth edge and off one.
+  double first_follow_end_on_edge = 0.0, first_follow_end_off_edge = 0.0;
 };
 
 inline constexpr int kHazardAges[] = {0, 1, 2, 5, 10, 20};
@@ -118,6 +120,8 @@ public:
                                    ? std::nan("")
                                    : static_cast<double>(gone == ended_.end() ? 0 : gone->second) / at->second);
     }
+    out.first_follow_end_on_edge = share(first_follow_end_on_edge_);
+    out.first_follow_end_off_edge = share(first_follow_end_off_edge_);
     out.drift_median_px = quantile(drift_, 0.5);
     out.drift_p90_px = quantile(drift_, 0.9);
     out.fresh_within_half = share(fresh_half_);
@@ -179,6 +183,7 @@ private:
       if (!life.counted()) continue;
       ++at_risk_[t.age];
       if (now.count(t.id) == 0) ++ended_[t.age];
+      if (t.age == 0) (life.on_depth_edge ? first_follow_end_on_edge_ : first_follow_end_off_edge_).push_back(now.count(t.id) == 0);
       const auto p = visible(f, T_cam_world, *life.point_world);
       const auto p_previous = camera_.project(T_cam_world_previous_ * *life.point_world);
       if (!p || !p_previous) continue;
@@ -223,6 +228,7 @@ private:
   std::unordered_map<int, int> at_risk_, ended_;
   std::vector<double> drift_;
   std::vector<bool> fresh_half_, fresh_one_, opencv_half_, opencv_one_, from_truth_fresh_, from_truth_mature_;
+  std::vector<bool> first_follow_end_on_edge_, first_follow_end_off_edge_;
   std::vector<bool> from_truth_by_isotropy_[std::size(kIsotropyBins) + 1];
   std::vector<TrackObservation> previous_tracks_;
   std::vector<cv::Mat> previous_pyramid_;
@@ -264,10 +270,11 @@ std::string describe(const TrackerTruthFigures& r) {
     out << text;
   }
   std::snprintf(text, sizeof text,
-                " %%; frames in tracks >= 20: %lld; drift %.2f / %.2f px (median / 90 %%); born on a depth edge %.0f %%\n"
+                " %% (at the first: born on a depth edge %.0f %%, off one %.0f %%); frames in tracks >= 20: %lld; drift %.2f / %.2f px "
+                "(median / 90 %%); born on a depth edge %.0f %%\n"
                 "          fresh corners off edges (%d) within 0.5 / 1 px: %.0f / %.0f %% (OpenCV's KLT %.0f / %.0f %%); "
                 "from the truth: fresh %.0f %%, age >= 10 %.0f %%; fresh by isotropy <0.05 / <0.15 / <0.3 / >=0.3: ",
-                r.frames_in_long_tracks, r.drift_median_px, r.drift_p90_px, 100.0 * r.born_on_depth_edge, r.fresh_followed,
+                100.0 * r.first_follow_end_on_edge, 100.0 * r.first_follow_end_off_edge, r.frames_in_long_tracks, r.drift_median_px, r.drift_p90_px, 100.0 * r.born_on_depth_edge, r.fresh_followed,
                 100.0 * r.fresh_within_half, 100.0 * r.fresh_within_one, 100.0 * r.opencv_within_half,
                 100.0 * r.opencv_within_one, 100.0 * r.from_truth_fresh, 100.0 * r.from_truth_mature);
   out << text;

@@ -54,8 +54,8 @@ struct PhotometricTrackerOptions {
   // Shi-Tomasi at a quality relative to the strongest corner keeps stripe ends and corners with a
   // line through them, whose coarse levels (a 9 x 9 patch there spans 36 x 36 px) see one
   // direction only; followed from the simulator's truth, fresh corners below 0.05 came within
-  // 0.5 px 13-27 % of the time, at 0.3 and above 64-74 % (README "Illuminator correction",
-  // session 36). 0 keeps every corner.
+  // 0.5 px 13-27 % of the time, at 0.3 and above 58-71 % (README "Illuminator correction",
+  // session 36, TrackerAgainstTruth). 0 keeps every corner.
   double min_corner_isotropy = 0.0;
   double max_forward_backward_px = 0.5;
   double max_residual_rms = 0.04;          // after the brightness fit, fraction of full scale

@@ -189,8 +189,10 @@ void PhotometricTracker::reset() {
   deformation_.reset();
 }
 
-const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
+const TrackedFrame& PhotometricTracker::process(const Frame& frame, const cv::Mat& detection_allowed) {
   validate_frame(frame, "photometric tracker frame");
+  if (!detection_allowed.empty() && (detection_allowed.type() != CV_8UC1 || detection_allowed.size() != frame.image.size()))
+    throw std::invalid_argument("photometric tracker: the detection mask must be CV_8UC1 of the frame's size");
   std::vector<cv::Mat> pyramid = build_intensity_pyramid(frame.image, frame.bit_depth, options_.pyramid_levels);
 
   TrackedFrame next;
@@ -261,19 +263,20 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame) {
   }
   next.intensity = pyramid[0];
   current_ = std::move(next);
-  if (static_cast<int>(current_.tracks.size()) < options_.min_tracks) detect(pyramid);
+  if (static_cast<int>(current_.tracks.size()) < options_.min_tracks) detect(pyramid, detection_allowed);
   if (options_.estimate_deformation) deformation_.update(current_);
   previous_pyramid_ = std::move(pyramid);
   return current_;
 }
 
-void PhotometricTracker::detect(const std::vector<cv::Mat>& pyramid) {
+void PhotometricTracker::detect(const std::vector<cv::Mat>& pyramid, const cv::Mat& allowed) {
   const cv::Mat& image = pyramid[0];
   const int margin = kPatchRadius + 2;
   if (image.cols <= 2 * margin || image.rows <= 2 * margin) return;
   detection_mask_.create(image.size(), CV_8UC1);
   detection_mask_.setTo(0);
   detection_mask_(cv::Rect(margin, margin, image.cols - 2 * margin, image.rows - 2 * margin)).setTo(255);
+  if (!allowed.empty()) cv::bitwise_and(detection_mask_, allowed, detection_mask_);  // 255 & v is v: nonzero stays nonzero
   const int cells = options_.grid_cols * options_.grid_rows;
   bucket_counts_.assign(static_cast<std::size_t>(cells), 0);
   const auto bucket = [&](const Eigen::Vector2d& p) {

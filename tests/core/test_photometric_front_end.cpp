@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
@@ -158,6 +159,26 @@ TEST(PhotometricTracker, CornerIsotropyTellsCornersFromEdgesAtEveryLevel) {
   EXPECT_LT(isotropic.size(), all.size());
   EXPECT_FALSE(std::any_of(isotropic.begin(), isotropic.end(), near_dot));
   for (const TrackObservation& t : isotropic) EXPECT_GE(corner_isotropy(pyramid, t.position), 0.5 * (dot_by_edge + dot_by_edge_fine));
+}
+
+// The caller's detection mask: new corners only where it is nonzero; a mask of the wrong size or
+// type is refused.
+TEST(PhotometricTracker, DetectsNewCornersOnlyWhereTheCallerAllows) {
+  const cv::Mat image = shifted(texture(240, 200, 3), Eigen::Vector2d::Zero(), 1.0);
+  cv::Mat left_half(image.size(), CV_8UC1, cv::Scalar(0));
+  left_half.colRange(0, 120).setTo(7);  // any nonzero value allows
+  PhotometricTracker everywhere, masked;
+  const auto all = everywhere.process(make_frame(image, 16, 0, std::nullopt)).tracks;
+  const auto left = masked.process(make_frame(image, 16, 0, std::nullopt), left_half).tracks;
+  ASSERT_GT(all.size(), 40u);
+  ASSERT_GT(left.size(), 10u);
+  EXPECT_TRUE(std::any_of(all.begin(), all.end(), [](const TrackObservation& t) { return t.position.x() >= 120.0; }));
+  for (const TrackObservation& t : left) EXPECT_LT(t.position.x(), 120.0);
+  PhotometricTracker refusing;
+  EXPECT_THROW(refusing.process(make_frame(image, 16, 0, std::nullopt), cv::Mat(10, 10, CV_8UC1, cv::Scalar(255))),
+               std::invalid_argument);
+  EXPECT_THROW(refusing.process(make_frame(image, 16, 0, std::nullopt), cv::Mat(image.size(), CV_32FC1, cv::Scalar(1.0f))),
+               std::invalid_argument);
 }
 
 // Patches 7-18 px from the border, where the coarsest level (a quarter of the resolution) has no

@@ -5,7 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include <opencv2/core/mat.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "nirslam/photometric/photometric_tracker.hpp"
 
@@ -31,6 +32,24 @@ inline bool patch_on_depth_edge(const cv::Mat& depth, int x, int y) {
         return true;
     }
   return false;
+}
+
+// Where patch_on_depth_edge is false, as a mask (CV_8UC1, 255 off the edges): the pixels whose
+// inverse depth has a second difference over 1 % of it (or no surface), dilated by the patch and
+// its two pixels to spare.
+inline cv::Mat off_depth_edges(const cv::Mat& depth) {
+  cv::Mat inverse;
+  cv::divide(1.0, depth, inverse, CV_32F);
+  inverse.setTo(0.0f, depth <= 0.0f);
+  cv::Mat dxx, dyy;
+  const cv::Mat second = (cv::Mat_<float>(1, 3) << 1.0f, -2.0f, 1.0f);
+  cv::filter2D(inverse, dxx, CV_32F, second, cv::Point(-1, -1), 0.0, cv::BORDER_REPLICATE);
+  cv::filter2D(inverse, dyy, CV_32F, second.t(), cv::Point(-1, -1), 0.0, cv::BORDER_REPLICATE);
+  const cv::Mat step = (cv::abs(dxx) > 0.01 * inverse) | (cv::abs(dyy) > 0.01 * inverse) | (inverse <= 0.0f);
+  cv::Mat near_step;
+  constexpr int kReach = kPatchRadius + 2;
+  cv::dilate(step, near_step, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * kReach + 1, 2 * kReach + 1)));
+  return near_step == 0;
 }
 
 }  // namespace nirslam::test_depth_edge

@@ -7,7 +7,8 @@
 // come from the table:
 //   NIRSLAM_TRACKER_TRUTH_TABLE=1 build/tests/nirslam_core_tests --gtest_filter=TrackerAgainstTruth.Table
 // with the tracker's options from NIRSLAM_TRACKER_TRUTH_ISOTROPY, _LEVELS, _BORDER,
-// _FRAME_GAIN (photometric_tracker.hpp) and the scenes from NIRSLAM_TRACKER_TRUTH_SCENES.
+// _FRAME_GAIN (photometric_tracker.hpp), new corners off the true depth edges only with
+// NIRSLAM_TRACKER_TRUTH_OFF_EDGES=1, and the scenes from NIRSLAM_TRACKER_TRUTH_SCENES.
 
 #include <algorithm>
 #include <cmath>
@@ -251,11 +252,15 @@ SimulatorOptions co_lit_sequence(sim::SceneKind scene, int frames) {
   return sim;
 }
 
-TrackerTruthFigures run(sim::SceneKind scene, int frames, const PhotometricTrackerOptions& options) {
+// With `off_depth_edges_only`, new corners are taken only off the true depth edges (the tracker's
+// detection mask), the ceiling of a depth-edge gate from the odometry's depths.
+TrackerTruthFigures run(sim::SceneKind scene, int frames, const PhotometricTrackerOptions& options,
+                        bool off_depth_edges_only = false) {
   Simulator simulator(co_lit_sequence(scene, frames));
   PhotometricTracker tracker(options);
   TrackerTruth truth(simulator, options);
-  while (auto f = simulator.next(true)) truth.frame(*f, tracker.process(f->frame));
+  while (auto f = simulator.next(true))
+    truth.frame(*f, tracker.process(f->frame, off_depth_edges_only ? test_depth_edge::off_depth_edges(f->depth) : cv::Mat()));
   return truth.figures();
 }
 
@@ -325,13 +330,14 @@ TEST(TrackerAgainstTruth, Table) {
   if (const auto v = env_number("NIRSLAM_TRACKER_TRUTH_LEVELS")) options.pyramid_levels = static_cast<int>(*v);
   if (const auto v = env_number("NIRSLAM_TRACKER_TRUTH_BORDER")) options.skip_coarse_levels_at_border = *v != 0.0;
   if (const auto v = env_number("NIRSLAM_TRACKER_TRUTH_FRAME_GAIN")) options.frame_pair_gain = *v != 0.0;
+  const bool off_depth_edges_only = env_number("NIRSLAM_TRACKER_TRUTH_OFF_EDGES").value_or(0.0) != 0.0;
   const char* scenes_env = std::getenv("NIRSLAM_TRACKER_TRUTH_SCENES");
   std::istringstream scenes(scenes_env ? scenes_env : "room outdoor parking tunnel");
   std::string name;
   while (scenes >> name) {
     const auto scene = sim::parse_scene_kind(name);
     ASSERT_TRUE(scene.has_value()) << "NIRSLAM_TRACKER_TRUTH_SCENES: unknown scene '" << name << "'";
-    std::printf("%-9s %s\n", name.c_str(), describe(run(*scene, 120, options)).c_str());
+    std::printf("%-9s %s\n", name.c_str(), describe(run(*scene, 120, options, off_depth_edges_only)).c_str());
   }
 }
 

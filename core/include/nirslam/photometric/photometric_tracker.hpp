@@ -195,15 +195,18 @@ class PhotometricTracker {
 public:
   explicit PhotometricTracker(PhotometricTrackerOptions options = {});
 
-  // Tracks the previous frame's patches into `frame` and tops them up with new corners.
-  // Throws std::invalid_argument for a malformed frame.
-  const TrackedFrame& process(const Frame& frame);
+  // Tracks the previous frame's patches into `frame` and tops them up with new corners, only
+  // where `detection_allowed` (CV_8UC1, the frame's size, nonzero where a corner may be taken)
+  // says so when it is given: a caller that knows where patches cannot be followed (a depth edge,
+  // from the odometry or a simulator's truth) keeps the track budget for the rest. Throws
+  // std::invalid_argument for a malformed frame or mask.
+  const TrackedFrame& process(const Frame& frame, const cv::Mat& detection_allowed = cv::Mat());
   const TrackedFrame& last() const { return current_; }
   const PhotometricTrackerOptions& options() const { return options_; }
   void reset();
 
 private:
-  void detect(const std::vector<cv::Mat>& pyramid);
+  void detect(const std::vector<cv::Mat>& pyramid, const cv::Mat& allowed);
 
   PhotometricTrackerOptions options_;
   std::vector<cv::Mat> previous_pyramid_;

@@ -87,7 +87,9 @@ struct PhotometricTrackerOptions {
   // truth, fresh street corners followed within 1 px 45 % per patch, 63 % with the pair's gain.
   // Off by default: under the co-located lamp a patch's brightness ratio depends on its distance,
   // and the pipeline's co-lit rows lost as many tracks to the residual test as they saved (README
-  // "Illuminator correction", session 35).
+  // "Illuminator correction", session 35); without the lamp it is no better, since through a
+  // curved response and the vignette an exposure change does not scale every grey value alike
+  // (issue 6's table over three draws: vignette rows met 14 -> 9, session 36).
   bool frame_pair_gain = false;
   double black_level = 0.03;               // for the frame's black / saturated fractions
   double saturation_level = 0.97;

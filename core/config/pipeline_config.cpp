@@ -131,6 +131,15 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   // point_rejection_sigmas), without and with the lamp's factor; 0: off.
   calibration.read<double>("point_rejection_sigmas", pipeline.calibration.backend.point_rejection_sigmas, 0.0, 100.0);
   calibration.read<double>("lamp_mode_point_rejection_sigmas", pipeline.calibration.backend.lit_point_rejection_sigmas, 0.0, 100.0);
+  if (const auto test = calibration.read_text("point_rejection")) {
+    if (*test == "point")
+      pipeline.calibration.backend.rejection = PhotometricBackendOptions::Rejection::Point;
+    else if (*test == "against-its-patch")
+      pipeline.calibration.backend.rejection = PhotometricBackendOptions::Rejection::AgainstItsPatch;
+    else
+      calibration.fail_at("point_rejection", "expected point or against-its-patch, got '" + *test + "'");
+  }
+  calibration.read_flag("point_rejection_whole_tracks", pipeline.calibration.backend.reject_whole_track);
   calibration.read_flag("lamp_mode_keyframes_follow_surface", pipeline.lamp_mode_keyframes_follow_surface);
   calibration.read<double>("lamp_mode_vignette_rim_curvature_weight", pipeline.lamp_mode_vignette_rim_curvature_weight, 0.0, 1e6);
   calibration.read_flag("lamp_mode_track_near_border", pipeline.lamp_mode_track_near_border);

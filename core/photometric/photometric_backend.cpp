@@ -389,11 +389,14 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
   for (const int k : window) modelled |= keyframes_[static_cast<std::size_t>(k)].illumination_modelled;
   lit_problem_ = modelled;
   const double mu = modelled ? options_.lit_gradient_mu : options_.gradient_mu;
+  int track = 0;
   for (const auto& [length, list] : usable) {
     if (static_cast<int>(points_.size()) + kBackendPixels > options_.max_points) break;
+    ++track;
     for (int k = 0; k < kBackendPixels; ++k) {
       Point point;
       point.begin = static_cast<int>(observations_.size());
+      point.track = track;
       double log_reference = std::nan("");  // log a of the point's first normal observation
       // Normal samples first (the reference of the light's factor is among them), then the
       // clipped ones as bounds.
@@ -493,27 +496,91 @@ double PhotometricBackend::scaled_residual(const State& state, std::size_t point
   return (255.0 * u * u - irradiance) * k;
 }
 
-int PhotometricBackend::drop_inconsistent_points(State& state, double sigmas) {
+std::vector<double> PhotometricBackend::point_rms_residuals(const State& state, std::vector<double>& abs_s) const {
   std::vector<double> point_rms(points_.size(), 0.0);
-  std::vector<double> abs_s;
+  abs_s.clear();
   abs_s.reserve(observations_.size());
-  for (std::size_t pi = 0; pi < points_.size(); ++pi) {
-    double squared = 0.0;
-    int normal = 0;
-    for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
-      if (observations_[static_cast<std::size_t>(i)].bound != 0) continue;
-      double slope = 0.0, u = 0.0;
-      const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope, &u) * std::sqrt(model_noise_weight(u, slope));
-      abs_s.push_back(std::abs(s));
-      squared += s * s;
-      ++normal;
+  if (options_.rejection == PhotometricBackendOptions::Rejection::Point) {
+    for (std::size_t pi = 0; pi < points_.size(); ++pi) {
+      double squared = 0.0;
+      int normal = 0;
+      for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
+        if (observations_[static_cast<std::size_t>(i)].bound != 0) continue;
+        double slope = 0.0, u = 0.0;
+        const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope, &u) * std::sqrt(model_noise_weight(u, slope));
+        abs_s.push_back(std::abs(s));
+        squared += s * s;
+        ++normal;
+      }
+      point_rms[pi] = normal > 0 ? std::sqrt(squared / normal) : 0.0;
     }
-    point_rms[pi] = normal > 0 ? std::sqrt(squared / normal) : 0.0;
+    return point_rms;
   }
+  // Against its patch: per track, the residuals in log irradiance by keyframe, the keyframe's
+  // median over the track's pixels taken off, and the rest carried back to grey levels.
+  struct Sample {
+    int keyframe;
+    std::size_t point;
+    double log_residual;  // s / (dI / d log X)
+    double grey_per_log;
+  };
+  std::vector<Sample> samples;
+  std::vector<double> group;
+  std::vector<double> squared(points_.size(), 0.0);
+  std::vector<int> count(points_.size(), 0);
+  for (std::size_t first = 0; first < points_.size();) {
+    std::size_t last = first;
+    while (last < points_.size() && points_[last].track == points_[first].track) ++last;
+    samples.clear();
+    for (std::size_t pi = first; pi < last; ++pi)
+      for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
+        if (observations_[static_cast<std::size_t>(i)].bound != 0) continue;
+        double slope = 0.0, u = 0.0;
+        const double s = scaled_residual(state, pi, static_cast<std::size_t>(i), slope, &u);
+        const double grey_per_log = 127.5 * u * slope;  // dI / d log X, X = u^2, I = 255 f(u)
+        if (!(grey_per_log > 1e-6)) continue;
+        samples.push_back({observations_[static_cast<std::size_t>(i)].keyframe, pi, s / grey_per_log, grey_per_log});
+      }
+    std::sort(samples.begin(), samples.end(), [](const Sample& a, const Sample& b) { return a.keyframe < b.keyframe; });
+    for (std::size_t a = 0; a < samples.size();) {
+      std::size_t b = a;
+      group.clear();
+      while (b < samples.size() && samples[b].keyframe == samples[a].keyframe) group.push_back(samples[b++].log_residual);
+      // A median of fewer than three pixels is one of them.
+      if (group.size() >= 3) {
+        const double shared = median_in_place(group);
+        for (std::size_t j = a; j < b; ++j) {
+          const double s = (samples[j].log_residual - shared) * samples[j].grey_per_log;
+          abs_s.push_back(std::abs(s));
+          squared[samples[j].point] += s * s;
+          ++count[samples[j].point];
+        }
+      }
+      a = b;
+    }
+    first = last;
+  }
+  for (std::size_t pi = 0; pi < points_.size(); ++pi) point_rms[pi] = count[pi] > 0 ? std::sqrt(squared[pi] / count[pi]) : 0.0;
+  return point_rms;
+}
+
+int PhotometricBackend::drop_inconsistent_points(State& state, double sigmas) {
+  std::vector<double> abs_s;
+  const std::vector<double> point_rms = point_rms_residuals(state, abs_s);
   if (abs_s.empty()) return 0;
   // The floor as for the Huber width: on noise-free data the median is 0 and every point would go.
   const double bound = sigmas * std::max(1.4826 * median_in_place(abs_s), 0.5);
-  const auto kept = static_cast<int>(std::count_if(point_rms.begin(), point_rms.end(), [&](double rms) { return rms <= bound; }));
+  std::vector<char> drop(points_.size());
+  for (std::size_t pi = 0; pi < points_.size(); ++pi) drop[pi] = point_rms[pi] > bound;
+  if (options_.reject_whole_track)
+    for (std::size_t first = 0; first < points_.size();) {
+      std::size_t last = first;
+      bool inconsistent = false;
+      while (last < points_.size() && points_[last].track == points_[first].track) inconsistent |= drop[last++] != 0;
+      if (inconsistent) std::fill(drop.begin() + static_cast<std::ptrdiff_t>(first), drop.begin() + static_cast<std::ptrdiff_t>(last), 1);
+      first = last;
+    }
+  const auto kept = static_cast<int>(std::count(drop.begin(), drop.end(), 0));
   const int dropped = static_cast<int>(points_.size()) - kept;
   if (dropped == 0 || kept < options_.min_points) return 0;
   std::vector<Point> points;
@@ -524,9 +591,10 @@ int PhotometricBackend::drop_inconsistent_points(State& state, double sigmas) {
   observations.reserve(observations_.size());
   u.reserve(observations_.size());
   for (std::size_t pi = 0; pi < points_.size(); ++pi) {
-    if (point_rms[pi] > bound) continue;
+    if (drop[pi]) continue;
     Point p;
     p.begin = static_cast<int>(observations.size());
+    p.track = points_[pi].track;
     for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
       observations.push_back(observations_[static_cast<std::size_t>(i)]);
       u.push_back(state.u[static_cast<std::size_t>(i)]);

@@ -650,6 +650,74 @@ TEST(PhotometricBackend, DistancesFilledInLaterCountAsIfKnownThroughout) {
   EXPECT_EQ(backend.fill_unknown_illumination(0, std::vector<TrackIllumination>{{0, 1.0}}), 0u);
 }
 
+// Co-lit keyframes as the pipeline hands them over: every track's distance off by a few per cent
+// in each keyframe (one error for its nine pixels), and in one track of six the grid's left column
+// across a depth edge, on a surface twice as far whose brightening under the approaching lamp is
+// another. Measured by each point's own residuals (Rejection::Point) the distance errors hide the
+// edge; against the median of its patch in each keyframe the shared error cancels and the edge's
+// pixels are what is left out (with reject_whole_track, their tracks).
+TEST(PhotometricBackend, PixelsAcrossADepthEdgeAreLeftOutAgainstTheirPatch) {
+  CoLitKeyframes input = co_lit_keyframes();
+  std::mt19937 rng(3);
+  std::normal_distribution<double> distance_error(0.0, 0.08);
+  int edge_points = 0;
+  for (PhotometricKeyframe& kf : input.keyframes)
+    for (KeyframeObservation& o : kf.observations) {
+      const double k = static_cast<double>(kf.frame_index);
+      if (o.track_id % 6 == 0) {
+        // The track's own surface at d, the far one at 2 d_0 - 0.06 k (a = ratio squared).
+        const double d = std::sqrt(std::exp(log_illumination(50.0, 1.0) - static_cast<double>(o.log_illumination)));
+        const double d0 = d + 0.06 * k;
+        const double far_over_near = std::pow((2.0 * d0 / (2.0 * d0 - 0.06 * k)) / (d0 / d), 2.0);
+        for (const int p : {0, 3, 6}) {
+          float& grey = o.grey[static_cast<std::size_t>(p)];
+          if (grey < 0.0f) continue;
+          const double X = input.truth.inverse(grey / 255.0) * far_over_near;
+          grey = X < 1.0 ? static_cast<float>(255.0 * input.truth(X)) : -1.0f;
+        }
+      }
+      o.log_illumination += static_cast<float>(distance_error(rng));
+    }
+  for (int t = 0; t < 60; t += 6) edge_points += 3;
+  struct Fit {
+    int rejected = 0;
+    double exposure_error = 0.0;
+  };
+  const auto fit = [&](double sigmas, PhotometricBackendOptions::Rejection rejection, bool whole_tracks = false) {
+    PhotometricBackendOptions options;
+    options.reject_whole_track = whole_tracks;
+    options.initial_response = input.truth;
+    options.estimate_response = false;
+    options.estimate_vignette = false;
+    options.lit_point_rejection_sigmas = sigmas;
+    options.rejection = rejection;
+    PhotometricBackend backend(options);
+    for (PhotometricKeyframe kf : input.keyframes) backend.add_keyframe(std::move(kf));
+    const BackendStep step = backend.optimise(60, true);
+    EXPECT_TRUE(step.ok) << step.status;
+    Fit out;
+    out.rejected = step.points_rejected;
+    const auto estimated = backend.keyframe_exposures();
+    for (std::size_t k = 0; k < estimated.size(); ++k)
+      out.exposure_error = std::max(out.exposure_error, std::abs(estimated[k].second / input.exposures[k] - 1.0));
+    std::printf("rejection %.0f sigmas, %s%s: %d points left out (%d across the edge), worst exposure error %.4f\n", sigmas,
+                rejection == PhotometricBackendOptions::Rejection::Point ? "own residuals" : "against the patch",
+                whole_tracks ? ", whole tracks" : "", out.rejected, edge_points, out.exposure_error);
+    return out;
+  };
+  using Rejection = PhotometricBackendOptions::Rejection;
+  const Fit kept = fit(0.0, Rejection::Point), own = fit(3.0, Rejection::Point), patch = fit(3.0, Rejection::AgainstItsPatch);
+  EXPECT_EQ(kept.rejected, 0);
+  EXPECT_GE(patch.rejected, edge_points * 8 / 10);
+  EXPECT_LE(patch.rejected, edge_points * 12 / 10);
+  EXPECT_LT(own.rejected, edge_points / 2);
+  EXPECT_LT(patch.exposure_error, 0.7 * kept.exposure_error);
+  // Whole tracks: the ten edge tracks' 90 points (each track's nine pixels, less any never sampled).
+  const Fit whole = fit(3.0, Rejection::AgainstItsPatch, true);
+  EXPECT_GE(whole.rejected, edge_points * 3 * 8 / 10);
+  EXPECT_LE(whole.rejected, edge_points * 3);
+}
+
 // Under the lamp the factor a comes from estimated distances. Noise in log a is noise in the
 // model's input, and a grey-level residual then favours a steeper G (errors-in-variables): the
 // pipeline's runs fell to G(128) of 2-18 grey levels for the true 56. With each residual

@@ -80,6 +80,8 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_EQ(config.worker.pipeline.calibration.backend.point_rejection_sigmas, PhotometricBackendOptions{}.point_rejection_sigmas);
   EXPECT_EQ(config.worker.pipeline.calibration.backend.lit_point_rejection_sigmas,
             PhotometricBackendOptions{}.lit_point_rejection_sigmas);
+  EXPECT_EQ(config.worker.pipeline.calibration.backend.rejection, PhotometricBackendOptions{}.rejection);
+  EXPECT_EQ(config.worker.pipeline.calibration.backend.reject_whole_track, PhotometricBackendOptions{}.reject_whole_track);
 }
 
 TEST(PipelineConfig, UnknownResidualFormNamesTheKeyAndTheValue) {
@@ -202,7 +204,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  lamp_mode_exposure_follows_surface: true\n  keyframes_by_reported_exposure: false\n"
                 "  residual: observed\n  lamp_mode_residual: predicted\n"
                 "  min_reference_ncc: 0.7\n  lamp_mode_min_reference_ncc: 0.9\n  min_corner_isotropy: 0.1\n"
-                "  point_rejection_sigmas: 3.5\n  lamp_mode_point_rejection_sigmas: 2\n"));
+                "  point_rejection_sigmas: 3.5\n  lamp_mode_point_rejection_sigmas: 2\n"
+                "  point_rejection: against-its-patch\n  point_rejection_whole_tracks: true\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_FALSE(config.worker.pipeline_mode_automatic) << "a named mode is not automatic";
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
@@ -218,6 +221,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_corner_isotropy, 0.1);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.point_rejection_sigmas, 3.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.lit_point_rejection_sigmas, 2.0);
+  EXPECT_EQ(config.worker.pipeline.calibration.backend.rejection, PhotometricBackendOptions::Rejection::AgainstItsPatch);
+  EXPECT_TRUE(config.worker.pipeline.calibration.backend.reject_whole_track);
   EXPECT_FALSE(config.worker.pipeline.calibration.keyframes_follow_deformation);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.vignette_rim_curvature_weight, 0.25);
   EXPECT_TRUE(config.worker.pipeline.lamp_mode_keyframes_follow_surface);
@@ -302,6 +307,10 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
   const std::string bad_part = pipeline_config_error(write_pipeline_yaml("given_lens", "calibration:\n  given_holds: lens\n"));
   EXPECT_NE(bad_part.find("calibration.given_holds"), std::string::npos) << bad_part;
   EXPECT_NE(bad_part.find("'lens'"), std::string::npos) << bad_part;
+  const std::string bad_rejection =
+      pipeline_config_error(write_pipeline_yaml("rejection_bad", "calibration:\n  point_rejection: track\n"));
+  EXPECT_NE(bad_rejection.find("calibration.point_rejection"), std::string::npos) << bad_rejection;
+  EXPECT_NE(bad_rejection.find("'track'"), std::string::npos) << bad_rejection;
 }
 
 TEST(PipelineConfig, MissingKeysKeepDefaults) {

@@ -16,8 +16,12 @@ reported ones, after the one factor that aligns them best in log (the median rat
 frames the front end estimated from its tracks. The frames it restarted at the reported value
 (every back-end update restarts the chain) are counted, not compared: their error is 0 by
 construction, and with them restarted every few frames the figure is a short chain's, not the
-long chain of the co-lit table's exposure pass (PhotometricAccuracy.CoLitTable). Python's
-standard library only.
+long chain of the co-lit table's exposure pass (PhotometricAccuracy.CoLitTable). The
+response's column "modulo s" is its mean difference in the observed grey range (calibration.json's
+`observed`) after the one irradiance scale s that fits it best (as the co-lit table's "observed
+range modulo the irradiance scale"): without saturated samples the data fix the curve's shape
+there and leave s to the continuation above, so a large response error with a small one modulo
+s is the scale's. Python's standard library only.
 """
 import glob
 import json
@@ -44,6 +48,23 @@ ESTIMATED, RESTARTED = 0, 2  # ExposureStatus in exposure_estimator.hpp
 def median(values):
     values = sorted(values)
     return values[len(values) // 2]
+
+
+def modulo_scale(estimate, truth, grey_range):
+    """(mean |s G_est - G_true| over the observed grey levels at the best s, s); both 256-level
+    inverse responses scaled to 255 at grey 255. s by a scan in log (the mean absolute error is
+    not smooth)."""
+    low, high = max(0, int(math.ceil(grey_range[0]))), min(255, int(math.floor(grey_range[1])))
+    levels = range(low, high + 1)
+    if len(levels) < 2:
+        return None, None
+    best = None
+    for i in range(-700, 701):
+        s = math.exp(i / 500.0)
+        error = sum(abs(s * estimate[g] - truth[g]) for g in levels) / len(levels)
+        if best is None or error < best[0]:
+            best = (error, s)
+    return best
 
 
 def exposure_errors(calibration):
@@ -88,21 +109,26 @@ def main():
         est = read_inverse_response(os.path.join(run, "calibration", "pcalib.txt"))
         tru = read_inverse_response(os.path.join(folders[0], "pcalib.txt"))
         response = [abs(a - b) for a, b in zip(est, tru)]
+        grey_range = (estimate.get("observed") or {}).get("grey_range")
+        shape, scale = modulo_scale(est, tru, grey_range) if grey_range else (None, None)
         exposure, restarted = exposure_errors(estimate)
         rows.append((sequence, sum(response) / 256, max(response), sum(halo) / len(halo), max(halo),
-                     estimate.get("lamp_beam_exponent"), exposure, restarted))
+                     estimate.get("lamp_beam_exponent"), exposure, restarted, shape, scale))
     if not rows:
         sys.exit(f"no runs in {bench}/runs/*/{mode}")
-    print("| Sequence | response mean / max [grey levels] | halo factor mean / max | beam exponent m "
+    print("| Sequence | response mean / max [grey levels] | modulo s (s) | halo factor mean / max | beam exponent m "
           "| exposure median [%] (frames restarted) |")
-    print("|---|---:|---:|---:|---:|")
-    for s, rm, rx, hm, hx, m, e, restarted in rows:
-        print(f"| {s} | {rm:.2f} / {rx:.1f} | {hm:.4f} / {hx:.3f} | {'-' if m is None else f'{m:.2f}'} "
+    print("|---|---:|---:|---:|---:|---:|")
+    for s, rm, rx, hm, hx, m, e, restarted, shape, scale in rows:
+        modulo = "-" if shape is None else f"{shape:.2f} ({scale:.2f})"
+        print(f"| {s} | {rm:.2f} / {rx:.1f} | {modulo} | {hm:.4f} / {hx:.3f} | {'-' if m is None else f'{m:.2f}'} "
               f"| {'-' if e is None else f'{e:.2f}'} ({restarted}) |")
     n = len(rows)
     exposures = [r[6] for r in rows if r[6] is not None]
     exposure_mean = f"{sum(exposures) / len(exposures):.2f}" if exposures else "-"
-    print(f"| mean | {sum(r[1] for r in rows) / n:.2f} | {sum(r[3] for r in rows) / n:.4f} | | {exposure_mean} |")
+    shapes = [r[8] for r in rows if r[8] is not None]
+    shape_mean = f"{sum(shapes) / len(shapes):.2f}" if shapes else "-"
+    print(f"| mean | {sum(r[1] for r in rows) / n:.2f} | {shape_mean} | {sum(r[3] for r in rows) / n:.4f} | | {exposure_mean} |")
     print(f"\nresponse mean < 2 on {sum(r[1] < 2 for r in rows)} of {n}, halo mean < 0.005 on "
           f"{sum(r[3] < 0.005 for r in rows)} of {n}")
 

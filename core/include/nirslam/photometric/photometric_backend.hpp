@@ -344,6 +344,25 @@ struct PhotometricBackendOptions {
   // Without and with the lamp's factor in the window; 0: off.
   double point_rejection_sigmas = 0.0;
   double lit_point_rejection_sigmas = 0.0;
+  // What the rejection measures. Point: the point's own residuals, which carry every error its
+  // track shares with its neighbours (a distance ratio the odometry got wrong moves all nine of a
+  // track's pixels alike), so with the pipeline's distances whole tracks go. AgainstItsPatch: each
+  // residual minus the median of its track's pixels in the same keyframe, taken in log irradiance
+  // (s / (dI / d log X)) where a shared factor is a shared offset: what is left is the pixel's
+  // own change, which a pixel across a depth edge from the track's surface has (its distance
+  // ratio is another surface's, and the parallax slides other surface points under it) and a
+  // pixel of the track's surface has not, however wrong the track's distance. Measured in Table
+  // 2's lamp runs with config/bench-lamp-colit-calibration.yaml and lit_point_rejection_sigmas 3
+  // (36 runs from frames 0 / 15 / 30): the co-lit response's median 3.53 -> 2.88 grey levels and
+  // rows under 2 8 -> 11 (the tunnel's 4-4.4 -> 1.1-1.3), but 4 rows above 8 (none before: the
+  // response's irradiance scale, its shape in the observed range stays 0.6-1.8), mean 3.21 ->
+  // 3.51; halo factor 0.026 -> 0.024; the odometry 0.0159 -> 0.0171 m. Not the default (README
+  // "Illuminator correction", session 37).
+  enum class Rejection { Point, AgainstItsPatch };
+  Rejection rejection = Rejection::Point;
+  // A track with any pixel left out goes whole. Worse in the lamp runs (mean 5.58 grey levels
+  // over the twelve from frame 0, against 4.22 for the pixels alone).
+  bool reject_whole_track = false;
   double convergence_relative = 1e-6; // stop when the cost drops by less than this fraction
   double monotonic_margin = 0.01;     // f'(u) below this (at 256 points) is penalised ...
   double monotonic_penalty_weight = 100.0;  // ... with this weight per observation
@@ -408,6 +427,7 @@ public:
 private:
   struct Point {
     int begin = 0, end = 0;  // into observations_
+    int track = 0;           // the problem's track (surface) it is a pixel of; a track's points are adjacent
   };
   struct Observation {
     int keyframe = 0;        // into the window's keyframe list
@@ -449,6 +469,9 @@ private:
   // residuals (options.point_rejection_sigmas), from points_, observations_ and `state`, unless
   // fewer than options.min_points would stay; returns how many.
   int drop_inconsistent_points(State& state, double sigmas);
+  // Each point's rms residual as options.rejection measures it (normal samples; 0 without any),
+  // and every such residual's magnitude into abs_s.
+  std::vector<double> point_rms_residuals(const State& state, std::vector<double>& abs_s) const;
   // The response fitted directly to the observations of known-exposure keyframes (see above);
   // std::nullopt when too few points or the fit fails.
   std::optional<Eigen::Vector4d> data_driven_response(const std::vector<double>& exposure, const std::vector<bool>& known,

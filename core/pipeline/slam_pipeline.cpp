@@ -191,8 +191,14 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
       track_distances_ = std::make_unique<TrackLightDistances>(*camera_, options_.track_light_distances);
     if (light_distances_ && (source == LampDistanceSource::HeldNeighbours || source == LampDistanceSource::HeldTracks))
       track_points_ = std::make_unique<TrackLightPoints>(*camera_);
-    if (light_distances_ && options_.lamp_cosine_to_calibration && options_.lamp_cosine_held_per_track)
+    if (light_distances_ && options_.lamp_cosine_to_calibration && options_.lamp_cosine_held_per_track) {
       track_cosines_ = std::make_unique<TrackLightCosines>(*camera_, options_.track_light_cosines);
+      if (options_.lamp_cosine_normal_radius_px > 0.0) {
+        LightDistanceMapOptions normals = options_.light_distances;
+        normals.search_radius_px = options_.lamp_cosine_normal_radius_px;
+        normal_map_ = std::make_unique<LightDistanceMap>(*camera_, normals);
+      }
+    }
     if (options_.lamp_distance_backfill && track_distances_) {
       KeyframeLightBackfillOptions backfill;
       backfill.min_cosine = options_.track_light_cosines.min_cosine;
@@ -332,7 +338,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
         illumination.track_light_cosine = [this](std::int64_t track_id, const Eigen::Vector2d& pixel) -> std::optional<double> {
           // The plane fit only for a track without a held normal.
           std::optional<LightGeometry> geometry;
-          if (!track_cosines_->holds_normal(track_id)) geometry = light_distances_->light_geometry(pixel);
+          if (!track_cosines_->holds_normal(track_id)) geometry = (normal_map_ ? *normal_map_ : *light_distances_).light_geometry(pixel);
           // The distance the calibration takes for this patch (the track's own first).
           std::optional<double> distance;
           if (track_points_)
@@ -420,6 +426,7 @@ bool SlamPipeline::predict_light_distances() {
     predicted = last_pose_->T_world_cam * (previous_pose_->T_world_cam.inverse() * last_pose_->T_world_cam);
   predicted_T_world_cam_ = predicted;
   light_distances_->build(window_points_, predicted, options_.odometry.light_offset);
+  if (normal_map_) normal_map_->build(window_points_, predicted, options_.odometry.light_offset);
   return !light_distances_->empty();
 }
 
@@ -483,6 +490,7 @@ void SlamPipeline::remember_odometry(const OdometryResult& result) {
     previous_pose_.reset();
     window_points_.clear();
     if (light_distances_) light_distances_->clear();
+    if (normal_map_) normal_map_->clear();
     if (track_distances_) track_distances_->clear();
     if (track_cosines_) track_cosines_->clear();
     if (track_points_) track_points_->clear();

@@ -117,6 +117,13 @@ struct PipelineOptions {
   // 0.025, each frame's 13.0 / 0.034; README "Illuminator correction", session 28).
   bool lamp_cosine_held_per_track = true;
   TrackLightCosinesOptions track_light_cosines;
+  // The held normal's plane fitted to the odometry's points within this radius (pixels at 640
+  // wide) instead of the distances' (light_distances.search_radius_px, 20): the inverse depth's
+  // slope from points 10-20 % off in depth each is noisy over a few pixels, a normal tilted at
+  // random makes the first frame's cosine too small on average, and the ratio the calibration
+  // carries (cos_i / cos_ref = (h_i / h_ref) (d_ref / d_i), h the lamp's height over the
+  // surface) then changes too much along the track. 0: the distances' radius.
+  double lamp_cosine_normal_radius_px = 0.0;
   // The calibration's settings in that case (the illuminated mode with lamp distances), in place
   // of calibration.keyframes_follow_deformation and backend.vignette_rim_curvature_weight, which
   // hold for the other modes: following the surface with a straight rim is better without the
@@ -308,6 +315,7 @@ private:
     SE3 T_world_cam;
   };
   std::unique_ptr<LightDistanceMap> light_distances_;
+  std::unique_ptr<LightDistanceMap> normal_map_;  // lamp_cosine_normal_radius_px's; null: light_distances_
   std::unique_ptr<TrackLightDistances> track_distances_;
   std::unique_ptr<TrackLightCosines> track_cosines_;
   std::unique_ptr<TrackLightPoints> track_points_;

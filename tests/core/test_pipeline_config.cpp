@@ -180,6 +180,9 @@ TEST(PipelineConfig, GivenCalibrationBenchFileAddsTheBeam) {
   EXPECT_TRUE(colit.worker.pipeline.lamp_distance_backfill);
   EXPECT_TRUE(colit.worker.pipeline.lamp_cosine_to_calibration);
   EXPECT_TRUE(colit.worker.pipeline.lamp_cosine_held_per_track);
+  EXPECT_DOUBLE_EQ(colit.worker.pipeline.calibration.tracker.min_corner_isotropy, 0.1);
+  EXPECT_DOUBLE_EQ(colit.worker.pipeline.track_light_cosines.min_cosine, 0.35);
+  EXPECT_DOUBLE_EQ(colit.worker.pipeline.lamp_cosine_normal_radius_px, 40.0);
   // The lamp-off calibration that gives the lens vignette: repeatable, V straight at the rim.
   const PipelineConfig lens = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/lens-calibration.yaml");
   EXPECT_FALSE(lens.worker.pipeline.calibration.background_thread);

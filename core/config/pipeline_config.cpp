@@ -52,6 +52,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   stages.read_flag("lamp_cosine_held_per_track", pipeline.lamp_cosine_held_per_track);
   stages.read<double>("lamp_cosine_min", pipeline.track_light_cosines.min_cosine, 0.0, 1.0);
   stages.read<double>("lamp_cosine_normal_radius_px", pipeline.lamp_cosine_normal_radius_px, 0.0, 200.0);
+  stages.read<int>("lamp_cosine_fits_before_hold", pipeline.track_light_cosines.fits_before_hold, 1, 100);
   stages.read_flag("lamp_cosine_from_inverse_depth_plane", pipeline.light_distances.normal_from_inverse_depth_plane);
   if (const auto source = stages.read_text("lamp_distance_source")) {
     if (const auto parsed = lamp_distance_source_from_string(*source))

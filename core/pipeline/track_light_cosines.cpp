@@ -9,12 +9,16 @@
 namespace nirslam {
 
 TrackLightCosines::TrackLightCosines(const CameraModel& camera, TrackLightCosinesOptions options)
-    : camera_(camera), options_(options), normals_world_(options.forget_after_frames) {}
+    : camera_(camera), options_(options), normals_world_(options.forget_after_frames), pending_world_(options.forget_after_frames) {}
 
-void TrackLightCosines::clear() { normals_world_.clear(); }
+void TrackLightCosines::clear() {
+  normals_world_.clear();
+  pending_world_.clear();
+}
 
 void TrackLightCosines::begin_frame(const SE3& T_world_cam, int segment) {
   normals_world_.begin_frame(segment);
+  pending_world_.begin_frame(segment);
   R_world_cam_ = T_world_cam.rotation_matrix();
 }
 
@@ -34,7 +38,20 @@ std::optional<double> TrackLightCosines::cosine(std::int64_t track_id, const Eig
   const Eigen::Vector3d* held = normals_world_.touch(track_id);
   if (held == nullptr) {
     if (!plane_normal_cam) return std::nullopt;
-    held = &normals_world_.hold(track_id, R_world_cam_ * plane_normal_cam->normalized());
+    Eigen::Vector3d sum = R_world_cam_ * plane_normal_cam->normalized();
+    int fits = 1;
+    if (const auto* pending = pending_world_.touch(track_id)) {
+      sum += pending->first;
+      fits += pending->second;
+    }
+    if (fits < options_.fits_before_hold) {
+      pending_world_.hold(track_id, {sum, fits});
+      return std::nullopt;
+    }
+    // Each fitted normal faces the lamp where it was fitted, and the lamp stays on one side of the
+    // surface along a track, so the fits agree in sign and their sum is their mean's direction.
+    if (!(sum.norm() > 0.0)) return std::nullopt;
+    held = &normals_world_.hold(track_id, sum.normalized());
   }
   const double c = cosine_from(*held, pixel, light_distance, light_offset_cam);
   if (!(c >= options_.min_cosine)) return std::nullopt;

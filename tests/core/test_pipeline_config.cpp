@@ -45,6 +45,7 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_TRUE(config.worker.pipeline.light_distances.normal_from_inverse_depth_plane);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.track_light_cosines.min_cosine, TrackLightCosinesOptions{}.min_cosine);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_cosine_normal_radius_px, PipelineOptions{}.lamp_cosine_normal_radius_px);
+  EXPECT_EQ(config.worker.pipeline.track_light_cosines.fits_before_hold, TrackLightCosinesOptions{}.fits_before_hold);
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Calibrated);
   EXPECT_EQ(config.worker.pipeline.odometry.window_size, 7);
   EXPECT_TRUE(config.worker.pipeline.calibration.background_thread);
@@ -183,6 +184,7 @@ TEST(PipelineConfig, GivenCalibrationBenchFileAddsTheBeam) {
   EXPECT_DOUBLE_EQ(colit.worker.pipeline.calibration.tracker.min_corner_isotropy, 0.1);
   EXPECT_DOUBLE_EQ(colit.worker.pipeline.track_light_cosines.min_cosine, 0.35);
   EXPECT_DOUBLE_EQ(colit.worker.pipeline.lamp_cosine_normal_radius_px, 40.0);
+  EXPECT_EQ(colit.worker.pipeline.track_light_cosines.fits_before_hold, 5);
   // The lamp-off calibration that gives the lens vignette: repeatable, V straight at the rim.
   const PipelineConfig lens = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/lens-calibration.yaml");
   EXPECT_FALSE(lens.worker.pipeline.calibration.background_thread);
@@ -200,7 +202,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   const PipelineConfig config = load_pipeline_config(write_pipeline_yaml(
       "stages", "pipeline:\n  mode: odometry\n  corrected_frame_exponent: 1.0\n  raw_frame_exponent: 0.5\n  lamp_distance_max_log_spread: 0.1\n"
                 "  lamp_distance_plane_fit: false\n  lamp_cosine_to_calibration: true\n  lamp_cosine_held_per_track: false\n"
-                "  lamp_cosine_min: 0.35\n  lamp_cosine_normal_radius_px: 40\n"
+                "  lamp_cosine_min: 0.35\n  lamp_cosine_normal_radius_px: 40\n  lamp_cosine_fits_before_hold: 4\n"
                 "  lamp_cosine_from_inverse_depth_plane: false\nodometry:\n  points_per_frame: 1500\n"
                 "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n  surface_normal_fit: inverse-depth-plane\n"
                 "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"
@@ -247,6 +249,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_FALSE(config.worker.pipeline.lamp_cosine_held_per_track);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.track_light_cosines.min_cosine, 0.35);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_cosine_normal_radius_px, 40.0);
+  EXPECT_EQ(config.worker.pipeline.track_light_cosines.fits_before_hold, 4);
   EXPECT_FALSE(config.worker.pipeline.light_distances.normal_from_inverse_depth_plane);
 }
 

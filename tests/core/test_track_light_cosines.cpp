@@ -3,7 +3,11 @@
 // within the lamp's travel along the tilt over its height of the truth when the held normal is
 // tilted, where a normal fitted again in each frame with the same error does not; no cosine before a
 // normal, below the grazing limit, or after a new segment.
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <random>
+#include <vector>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -116,6 +120,59 @@ TEST(TrackLightCosines, NoCosineWhereTheLightGrazesOrAfterANewSegment) {
   EXPECT_TRUE(cosines.cosine(2, n.pixel, n.distance, light_offset, kFloorNormalFacingTheLamp));
   for (int frame = 2; frame < 2 + options.forget_after_frames + 2; ++frame) cosines.begin_frame(pose_at(frame), 1);
   EXPECT_EQ(cosines.tracks(), 0u);
+}
+
+// Normals fitted with a random tilt (the odometry's depth noise): holding the first fit puts its
+// tilt into every ratio along the track; holding the mean of the first five brings the cosine at
+// the first frame closer to the truth (in the median over tracks), and there is no cosine before.
+TEST(TrackLightCosines, TheMeanOfSeveralFitsIsHeldWhenAsked) {
+  const PinholeCamera camera = pinhole_camera_640();
+  const Eigen::Vector3d light_offset = Eigen::Vector3d::Zero();
+  std::mt19937 rng(7);
+  std::normal_distribution<double> tilt_deg(0.0, 8.0);
+  const auto noisy_normal = [&] {
+    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(tilt_deg(rng) * M_PI / 180.0, Eigen::Vector3d::UnitX()) *
+                                  Eigen::AngleAxisd(tilt_deg(rng) * M_PI / 180.0, Eigen::Vector3d::UnitZ()))
+                                     .toRotationMatrix();
+    return Eigen::Vector3d(tilt * kFloorNormalFacingTheLamp);
+  };
+  std::vector<double> first_fit, mean_of_five;
+  int grazed = 0;  // tracks whose held normal tilts the light below min_cosine
+  for (int track = 0; track < 200; ++track) {
+    const Eigen::Vector3d p_world(-1.0 + 0.01 * track, 1.0, 3.0 + 0.01 * track);
+    std::optional<double> held[2];
+    for (const int fits : {1, 5}) {
+      TrackLightCosinesOptions options;
+      options.fits_before_hold = fits;
+      TrackLightCosines cosines(camera, options);
+      std::optional<double> c;
+      for (int frame = 0; frame < fits; ++frame) {
+        cosines.begin_frame(pose_at(0), 0);  // the same pose: only the fits' noise differs
+        const Seen s = see(camera, p_world, pose_at(0), light_offset);
+        c = cosines.cosine(track, s.pixel, s.distance, light_offset, noisy_normal());
+        if (frame + 1 < fits) {
+          ASSERT_FALSE(c) << "no cosine before the hold";
+          EXPECT_FALSE(cosines.holds_normal(track));
+        }
+      }
+      EXPECT_TRUE(cosines.holds_normal(track));
+      held[fits == 1 ? 0 : 1] = c;
+    }
+    if (!held[0] || !held[1]) {
+      ++grazed;
+      continue;
+    }
+    const double truth = see(camera, p_world, pose_at(0), light_offset).true_cosine;
+    first_fit.push_back(std::abs(std::log(*held[0] / truth)));
+    mean_of_five.push_back(std::abs(std::log(*held[1] / truth)));
+  }
+  EXPECT_LT(grazed, 40);  // measured 20 of 200
+  const auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  std::printf("|log(cos / truth)| median: first fit %.3f, mean of five %.3f\n", median(first_fit), median(mean_of_five));
+  EXPECT_LT(median(mean_of_five), 0.6 * median(first_fit));
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <utility>
 
 #include <Eigen/Core>
 
@@ -28,6 +29,11 @@ struct TrackLightCosinesOptions {
   double min_cosine = 0.05;
   // A track not asked for this many frames is forgotten (the front end never reuses an id).
   int forget_after_frames = 5;
+  // The normal held once the track has this many fitted normals, their mean (world frame): one
+  // fit's tilt from the points' depth noise makes the first cosine too small on average (cos is
+  // largest at the true normal) and the ratio along the track too large. Until then the track
+  // has no cosine (the calibration's back-fill gives its earlier keyframes one once it is held).
+  int fits_before_hold = 1;
 };
 
 class TrackLightCosines {
@@ -71,6 +77,7 @@ private:
   const CameraModel& camera_;
   TrackLightCosinesOptions options_;
   HeldPerTrack<Eigen::Vector3d> normals_world_;
+  HeldPerTrack<std::pair<Eigen::Vector3d, int>> pending_world_;  // the fits so far: their sum and count
   Eigen::Matrix3d R_world_cam_ = Eigen::Matrix3d::Identity();
 };
 

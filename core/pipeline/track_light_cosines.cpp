@@ -50,8 +50,9 @@ std::optional<double> TrackLightCosines::cosine(std::int64_t track_id, const Eig
     }
     // Each fitted normal faces the lamp where it was fitted, and the lamp stays on one side of the
     // surface along a track, so the fits agree in sign and their sum is their mean's direction.
+    // (One fit is held as it is: normalised again its last bits would move every run's figures.)
     if (!(sum.norm() > 0.0)) return std::nullopt;
-    held = &normals_world_.hold(track_id, sum.normalized());
+    held = &normals_world_.hold(track_id, fits == 1 ? sum : Eigen::Vector3d(sum.normalized()));
   }
   const double c = cosine_from(*held, pixel, light_distance, light_offset_cam);
   if (!(c >= options_.min_cosine)) return std::nullopt;

@@ -2,7 +2,11 @@
 """Photometric calibration errors of a `nirslam bench` output's lamp-mode runs against the
 simulator's ground truth (README, "Illuminator correction", the lamp mode fully online).
 
-Usage: tests/tools/colit_calibration_errors.py BENCH_DIR [MODE]
+Usage: tests/tools/colit_calibration_errors.py BENCH_DIR [MODE] [--offsets OFFSETS_DIR ...]
+
+--offsets adds the runs of `tests/tools/start_offsets.sh ... OFFSETS_DIR --mode illuminated`
+(OFFSETS_DIR/runs/SEQ_from_N/calibration, their truth from BENCH_DIR/sequences/SEQ_*) and prints
+the summary over all rows (the 36 runs of README "Illuminator correction", session 37).
 
 For every BENCH_DIR/runs/SEQ/MODE (MODE: illuminated by default) with its sequence in
 BENCH_DIR/sequences/SEQ_*: the response as the mean / max difference over all 256 grey levels
@@ -50,6 +54,12 @@ def median(values):
     return values[len(values) // 2]
 
 
+def median_of(values):
+    values = sorted(values)
+    middle = len(values) // 2
+    return values[middle] if len(values) % 2 else 0.5 * (values[middle - 1] + values[middle])
+
+
 def modulo_scale(estimate, truth, grey_range):
     """(mean |s G_est - G_true| over the observed grey levels at the best s, s); both 256-level
     inverse responses scaled to 255 at grey 255. s by a scan in log (the mean absolute error is
@@ -85,13 +95,27 @@ def exposure_errors(calibration):
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
-    bench, mode = sys.argv[1], (sys.argv[2] if len(sys.argv) > 2 else "illuminated")
+    args = sys.argv[1:]
+    offsets = []
+    while "--offsets" in args:
+        at = args.index("--offsets")
+        if at + 1 >= len(args):
+            sys.exit("--offsets needs a folder")
+        offsets.append(args[at + 1])
+        del args[at:at + 2]
+    bench, mode = args[0], (args[1] if len(args) > 1 else "illuminated")
     rows = []
-    for run in sorted(glob.glob(os.path.join(bench, "runs", "*", mode))):
-        sequence = os.path.basename(os.path.dirname(run))
-        folders = glob.glob(os.path.join(bench, "sequences", sequence + "_*"))
+    runs = [(run, os.path.basename(os.path.dirname(run)), os.path.basename(os.path.dirname(run)))
+            for run in sorted(glob.glob(os.path.join(bench, "runs", "*", mode)))]
+    for folder in offsets:
+        found = sorted(glob.glob(os.path.join(folder, "runs", "*_from_*")))
+        if not found:
+            sys.exit(f"{folder}: no runs/SEQ_from_N")
+        runs += [(run, os.path.basename(run), os.path.basename(run).rsplit("_from_", 1)[0]) for run in found]
+    for run, sequence, base in runs:
+        folders = glob.glob(os.path.join(bench, "sequences", base + "_*"))
         if not folders:
-            sys.exit(f"{run}: no sequence {sequence}_* in {bench}/sequences")
+            sys.exit(f"{run}: no sequence {base}_* in {bench}/sequences")
         truth = json.load(open(os.path.join(folders[0], "groundtruth.json")))
         cam = truth["camera"]
         fx, fy, cx, cy, w, h = cam["fx"], cam["fy"], cam["cx"], cam["cy"], cam["width"], cam["height"]
@@ -131,6 +155,9 @@ def main():
     print(f"| mean | {sum(r[1] for r in rows) / n:.2f} | {shape_mean} | {sum(r[3] for r in rows) / n:.4f} | | {exposure_mean} |")
     print(f"\nresponse mean < 2 on {sum(r[1] < 2 for r in rows)} of {n}, halo mean < 0.005 on "
           f"{sum(r[3] < 0.005 for r in rows)} of {n}")
+    if offsets:
+        print(f"over the {n} runs: response median {median_of([r[1] for r in rows]):.2f}, above 8 grey levels on "
+              f"{sum(r[1] > 8 for r in rows)}; halo factor median {median_of([r[3] for r in rows]):.4f}")
 
 
 if __name__ == "__main__":

@@ -55,6 +55,8 @@ def median(values):
 
 
 def median_of(values):
+    """The median as the README's summaries state it (the two middle values averaged for an even
+    count); median() above takes the upper one, which the exposure column has always used."""
     values = sorted(values)
     middle = len(values) // 2
     return values[middle] if len(values) % 2 else 0.5 * (values[middle - 1] + values[middle])

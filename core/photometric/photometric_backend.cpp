@@ -37,6 +37,15 @@ double median_in_place(std::vector<double>& values) {
   return *middle;
 }
 
+// One past the last of the points from `first` on that share its track (a track's pixels are
+// adjacent in the point list).
+template <typename Points>
+std::size_t track_end(const Points& points, std::size_t first) {
+  std::size_t last = first;
+  while (last < points.size() && points[last].track == points[first].track) ++last;
+  return last;
+}
+
 // V > 0 on [0, 1]: the correction G / V must stay finite. (A beam pattern times a vignette may
 // rise slightly off-centre, so monotonic decrease is not required.)
 bool vignette_positive(const Eigen::Vector3d& v) {
@@ -529,8 +538,7 @@ std::vector<double> PhotometricBackend::point_rms_residuals(const State& state, 
   std::vector<double> squared(points_.size(), 0.0);
   std::vector<int> count(points_.size(), 0);
   for (std::size_t first = 0; first < points_.size();) {
-    std::size_t last = first;
-    while (last < points_.size() && points_[last].track == points_[first].track) ++last;
+    const std::size_t last = track_end(points_, first);
     samples.clear();
     for (std::size_t pi = first; pi < last; ++pi)
       for (int i = points_[pi].begin; i < points_[pi].end; ++i) {
@@ -574,9 +582,9 @@ int PhotometricBackend::drop_inconsistent_points(State& state, double sigmas) {
   for (std::size_t pi = 0; pi < points_.size(); ++pi) drop[pi] = point_rms[pi] > bound;
   if (options_.reject_whole_track)
     for (std::size_t first = 0; first < points_.size();) {
-      std::size_t last = first;
-      bool inconsistent = false;
-      while (last < points_.size() && points_[last].track == points_[first].track) inconsistent |= drop[last++] != 0;
+      const std::size_t last = track_end(points_, first);
+      const bool inconsistent = std::any_of(drop.begin() + static_cast<std::ptrdiff_t>(first),
+                                            drop.begin() + static_cast<std::ptrdiff_t>(last), [](char d) { return d != 0; });
       if (inconsistent) std::fill(drop.begin() + static_cast<std::ptrdiff_t>(first), drop.begin() + static_cast<std::ptrdiff_t>(last), 1);
       first = last;
     }

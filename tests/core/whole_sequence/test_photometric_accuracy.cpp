@@ -292,9 +292,11 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
   // The neighbourhood the deformation is fitted over (track_deformation.hpp, 60 px by default).
   if (const char* r = std::getenv("NIRSLAM_PHOTOMETRIC_NEIGHBOUR_RADIUS")) options.tracker.deformation.neighbour_radius_px = std::atof(r);
   // The halo factor as the true lens vignette times the beam, the beam's exponent the only
-  // vignette unknown (beam_halo.hpp), from this start.
+  // vignette unknown (beam_halo.hpp), from this start; with NIRSLAM_PHOTOMETRIC_BEAM_FLAT_LENS a
+  // flat lens instead, as `calibration.lamp_halo: beam` has it (the lens's fall-off goes into m).
   if (const char* start = std::getenv("NIRSLAM_PHOTOMETRIC_BEAM_HALO")) {
-    options.backend.beam_halo = beam_halo_for_camera(*Simulator(sim_options).camera(), sim_options.vignette, std::atof(start));
+    const VignetteModel lens = std::getenv("NIRSLAM_PHOTOMETRIC_BEAM_FLAT_LENS") != nullptr ? VignetteModel{} : sim_options.vignette;
+    options.backend.beam_halo = beam_halo_for_camera(*Simulator(sim_options).camera(), lens, std::atof(start));
     options.backend.initial_vignette.v = options.backend.beam_halo->vignette(std::atof(start));
     std::printf("beam halo from m = %s; the simulator's m %.3f\n", start,
                 Simulator(sim_options).lighting(sim_options.powers_w.front()).illuminator.beam_exponent());
@@ -345,6 +347,9 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
   second.run_backend = false;
   second.backend.initial_response = out.estimate->response;
   second.backend.initial_vignette = out.estimate->vignette;
+  // The estimate's halo factor as it is: with a beam halo the back end would start from the
+  // beam's initial exponent instead (it does not run here).
+  second.backend.beam_halo.reset();
   second.initial_grey_range = std::make_pair(out.estimate->grey_low, out.estimate->grey_high);
   // Diagnosis, the front end alone: the exposure pass with the true f and V (any value), or with
   // only one of them (=response, =vignette) and the estimate for the other; =response-weighted:

@@ -143,6 +143,8 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
       calibration.fail_at("point_rejection", "expected point or against-its-patch, got '" + *test + "'");
   }
   calibration.read_flag("point_rejection_whole_tracks", pipeline.calibration.backend.reject_whole_track);
+  // The ambient light beside the lamp's (photometric_backend.hpp, lit_ambient).
+  calibration.read_flag("lamp_mode_ambient", pipeline.calibration.backend.lit_ambient);
   calibration.read_flag("lamp_mode_keyframes_follow_surface", pipeline.lamp_mode_keyframes_follow_surface);
   calibration.read<double>("lamp_mode_vignette_rim_curvature_weight", pipeline.lamp_mode_vignette_rim_curvature_weight, 0.0, 1e6);
   calibration.read_flag("lamp_mode_track_near_border", pipeline.lamp_mode_track_near_border);

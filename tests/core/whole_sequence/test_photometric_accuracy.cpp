@@ -273,6 +273,8 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
   if (std::getenv("NIRSLAM_PHOTOMETRIC_REJECT_AGAINST_PATCH") != nullptr)
     options.backend.rejection = PhotometricBackendOptions::Rejection::AgainstItsPatch;
   if (std::getenv("NIRSLAM_PHOTOMETRIC_REJECT_WHOLE_TRACKS") != nullptr) options.backend.reject_whole_track = true;
+  // The ambient light beside the lamp's (photometric_backend.hpp, lit_ambient).
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_LIT_AMBIENT") != nullptr) options.backend.lit_ambient = true;
   // The distances here are the simulator's, exact: no noise in log a to model (fitted anyway, the
   // model noise takes other errors for it: room d^2 + cos 0.0037 -> 0.0225 vignette, 1.6 -> 2.7 %).
   options.backend.lit_log_illumination_sigma = 0.0;

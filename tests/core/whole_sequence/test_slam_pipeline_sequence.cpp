@@ -501,6 +501,7 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
   if (std::getenv("NIRSLAM_PIPELINE_REJECT_AGAINST_PATCH") != nullptr)
     options.calibration.backend.rejection = PhotometricBackendOptions::Rejection::AgainstItsPatch;
   if (std::getenv("NIRSLAM_PIPELINE_REJECT_WHOLE_TRACKS") != nullptr) options.calibration.backend.reject_whole_track = true;
+  if (std::getenv("NIRSLAM_PIPELINE_LIT_AMBIENT") != nullptr) options.calibration.backend.lit_ambient = true;
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_DISTANCE_SOURCE"))
     options.lamp_distance_source = lamp_distance_source_from_string(v).value_or(LampDistanceSource::Neighbours);
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_PARALLAX")) options.track_light_distances.min_parallax_deg = std::atof(v);

@@ -184,10 +184,12 @@ FrameIllumination true_illumination(const Simulator& sim, const SimulatedFrame& 
       return inner(pixel);
     };
   }
+  // Diagnosis: observations where the light grazes left out (the pipeline's lamp_cosine_min; 0.02 here).
+  const double min_cosine = std::getenv("NIRSLAM_PHOTOMETRIC_MIN_COSINE") ? std::atof(std::getenv("NIRSLAM_PHOTOMETRIC_MIN_COSINE")) : 0.02;
   if (cosine)
-    illumination.light_cosine = [&sim, &f](const Eigen::Vector2d& pixel) -> std::optional<double> {
+    illumination.light_cosine = [&sim, &f, min_cosine](const Eigen::Vector2d& pixel) -> std::optional<double> {
       const auto cos_theta = true_light_cosine(sim, f.T_world_cam, pixel);
-      if (!cos_theta || !(*cos_theta > 0.02)) return std::nullopt;
+      if (!cos_theta || !(*cos_theta > min_cosine)) return std::nullopt;
       return cos_theta;
     };
   return illumination;

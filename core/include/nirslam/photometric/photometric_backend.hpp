@@ -392,9 +392,9 @@ struct PhotometricBackendOptions {
   // response's scale ran off (room 5.7 -> 11.3 grey levels, the street's exponent unmoved).
   // Measured (README "Illuminator correction", session 38): on synthetic keyframes exact (test
   // AmbientLightKeepsTheBeamAndResponse); on the co-lit table with the exact geometry and the beam
-  // over a flat lens the response 5.72 / 5.67 / 2.60 / 1.02 -> 3.31 / 4.42 / 2.75 / 1.01 grey
-  // levels (room / street / garage / tunnel), the halo factor 0.0031 / 0.0154 / 0.0025 / 0.0136 ->
-  // 0.0024 / 0.0081 / 0.0026 / 0.0149, the street's kappa 0.084; in Table 2's lamp runs with
+  // over a flat lens, means over three noise draws, the response 3.61 / 4.97 / 5.12 / 2.05 ->
+  // 2.79 / 4.78 / 5.19 / 2.36 grey levels (room / street / garage / tunnel), the halo factor
+  // 0.0033 / 0.0096 / 0.0111 / 0.0170 -> 0.0034 / 0.0069 / 0.0110 / 0.0164; in Table 2's lamp runs with
   // config/bench-lamp-colit-calibration.yaml worse (response 3.39 -> 4.55 grey levels, halo
   // factor 0.0142 -> 0.0157, ATE 0.0161 -> 0.0214 m): the pipeline's distance errors go into
   // kappa. Off by default.

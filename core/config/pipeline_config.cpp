@@ -145,6 +145,10 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read_flag("point_rejection_whole_tracks", pipeline.calibration.backend.reject_whole_track);
   // The ambient light beside the lamp's (photometric_backend.hpp, lit_ambient).
   calibration.read_flag("lamp_mode_ambient", pipeline.calibration.backend.lit_ambient);
+  // Eq. 2-5's mu, without and with the lamp's factor (photometric_backend.hpp, gradient_mu and
+  // lit_gradient_mu); above zero, or every sample's weight would vanish.
+  calibration.read<double>("gradient_mu", pipeline.calibration.backend.gradient_mu, 1e-6, 1e9);
+  calibration.read<double>("lamp_mode_gradient_mu", pipeline.calibration.backend.lit_gradient_mu, 1e-6, 1e9);
   calibration.read_flag("lamp_mode_keyframes_follow_surface", pipeline.lamp_mode_keyframes_follow_surface);
   calibration.read<double>("lamp_mode_vignette_rim_curvature_weight", pipeline.lamp_mode_vignette_rim_curvature_weight, 0.0, 1e6);
   calibration.read_flag("lamp_mode_track_near_border", pipeline.lamp_mode_track_near_border);

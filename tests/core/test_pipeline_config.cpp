@@ -185,6 +185,8 @@ TEST(PipelineConfig, GivenCalibrationBenchFileAddsTheBeam) {
   EXPECT_DOUBLE_EQ(colit.worker.pipeline.track_light_cosines.min_cosine, 0.35);
   EXPECT_DOUBLE_EQ(colit.worker.pipeline.lamp_cosine_normal_radius_px, 40.0);
   EXPECT_EQ(colit.worker.pipeline.track_light_cosines.fits_before_hold, 5);
+  EXPECT_DOUBLE_EQ(colit.worker.pipeline.calibration.backend.lit_gradient_mu, 2.0);
+  EXPECT_DOUBLE_EQ(colit.worker.pipeline.calibration.backend.gradient_mu, 0.25) << "lamp-off problems as by default";
   // The lamp-off calibration that gives the lens vignette: repeatable, V straight at the rim.
   const PipelineConfig lens = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/lens-calibration.yaml");
   EXPECT_FALSE(lens.worker.pipeline.calibration.background_thread);

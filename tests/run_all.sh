@@ -15,11 +15,12 @@ jobs=$(nproc)
 # the libraries it links are built, so the second core idled while the core library's last batch
 # compiled (44 s of 569 in the ASan stage's build, 2026-12-03); Ninja orders only the links. A
 # tree configured earlier with another generator keeps it (CMake refuses to switch).
-# GCC's garbage collector runs whenever its heap grows by 30 % over a few hundred megabytes; a
-# batch of this code base instantiates 1-4 GB of Eigen and OpenCV templates, and collecting all
-# along cost 9-12 % of the compile (the core batch with the photometric back end: 76 -> 67 s in
-# Release, 139 -> 124 s with the sanitizers, peak 3.0 -> 3.9 GB a compile, 2026-12-06). With two
-# compiles at a time that stays far inside the 24 GiB the brief's machine has.
+# GCC's garbage collector runs each time its heap has doubled since the last collection, from
+# 128 MB on (`g++ -Q --help=params`: ggc-min-expand 100, ggc-min-heapsize 131072 kB); a batch of
+# this code base instantiates 1-4 GB of Eigen and OpenCV templates, and collecting all along cost
+# 9-12 % of the compile (the core batch with the photometric back end: 76 -> 67 s in Release,
+# 139 -> 124 s with the sanitizers, peak 3.0 -> 3.9 GB a compile, 2026-12-06). With two compiles
+# at a time that stays far inside the 24 GiB the brief's machine has.
 gcc_heap=()
 if "${CXX:-c++}" -v 2>&1 | grep -q '^gcc version'; then
   gcc_heap=("-DCMAKE_CXX_FLAGS=--param=ggc-min-expand=1000 --param=ggc-min-heapsize=8388608")

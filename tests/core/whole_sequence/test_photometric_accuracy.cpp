@@ -305,6 +305,13 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
     std::printf("beam halo from m = %s; the simulator's m %.3f\n", start,
                 Simulator(sim_options).lighting(sim_options.powers_w.front()).illuminator.beam_exponent());
   }
+  // Diagnosis: the back end's initial response (the gamma preset by default), which is one of the
+  // multi-start's probes; with another preset the gamma rows do not have their truth among them.
+  if (const char* name = std::getenv("NIRSLAM_PHOTOMETRIC_INITIAL_RESPONSE")) {
+    const auto preset = parse_response_preset(name);
+    if (!preset) throw std::invalid_argument(std::string("NIRSLAM_PHOTOMETRIC_INITIAL_RESPONSE: not a response preset: ") + name);
+    options.backend.initial_response = ResponseModel::from_preset(*preset);
+  }
   if (std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE") != nullptr) {  // diagnosis: is it a local minimum?
     options.backend.initial_response = sim_options.response;
     // Under the lamp the halo factor (the vignette the back end estimates then).

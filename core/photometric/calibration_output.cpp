@@ -191,6 +191,10 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
                  "(straight over r^2 with vignette_rim_curvature_weight); neither is measured there; null: no "
                  "back-end estimate (the initial or a given model)"}}},
       {"lamp_beam_exponent", estimate.beam_exponent ? nlohmann::json(*estimate.beam_exponent) : nlohmann::json(nullptr)},
+      // The lens vignette the beam multiplies (V_lens(r) cos(alpha)^m, what the odometry's lamp
+      // factor applies; "vignette" above is the sextic closest to it).
+      {"lamp_beam_lens", estimate.beam_lens ? nlohmann::json(std::vector<double>(estimate.beam_lens->v.data(), estimate.beam_lens->v.data() + 3))
+                                            : nlohmann::json(nullptr)},
       {"ambiguity_resolution", std::string(to_string(estimate.ambiguity))},
       {"ambiguity_detail", estimate.ambiguity_detail},
       {"exposure_unit", estimate.ambiguity == AmbiguityResolution::Normalisation ? "relative (first frame = 1)"

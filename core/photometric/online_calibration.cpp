@@ -125,7 +125,10 @@ std::shared_ptr<const PhotometricEstimate> OnlinePhotometricCalibration::initial
   auto e = std::make_shared<PhotometricEstimate>();
   e->response = backend_.response();
   e->vignette = backend_.vignette();
-  if (options_.backend.beam_halo) e->beam_exponent = backend_.beam_exponent();
+  if (options_.backend.beam_halo) {
+    e->beam_exponent = backend_.beam_exponent();
+    e->beam_lens = options_.backend.beam_halo->lens();
+  }
   if (!options_.given_model.empty()) {
     e->ambiguity = AmbiguityResolution::Given;
     e->ambiguity_detail = options_.given_model;
@@ -359,7 +362,10 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
     e->response = backend_.response();
     e->vignette = backend_.vignette();
     e->model_version = ++version_;
-    if (options_.backend.beam_halo) e->beam_exponent = backend_.beam_exponent();
+    if (options_.backend.beam_halo) {
+      e->beam_exponent = backend_.beam_exponent();
+      e->beam_lens = options_.backend.beam_halo->lens();
+    }
     // The model's course through a run (`nirslam -v`): what drifted, and when.
     // gamma: the log-log slope of f^-1 between grey 64 and 128, free of the irradiance scale.
     spdlog::debug("photometric model v{}: {} keyframes in the window, {} points; response {} (f^-1(0.5) = {:.4f}, "
@@ -377,6 +383,7 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
     e->vignette = previous->vignette;
     e->model_version = previous->model_version;
     e->beam_exponent = previous->beam_exponent;
+    e->beam_lens = previous->beam_lens;
   }
   e->converged = step.converged;
   e->iterations = step.iterations;

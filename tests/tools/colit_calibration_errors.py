@@ -14,7 +14,10 @@ of the two inverse responses (pcalib.txt), each scaled to 255 at grey 255 (the i
 is a normalisation, not data); the halo factor as the mean / max |V_est(x) - V_lens(x) B(x)| over
 a grid of every 8th pixel, V_est from calibration.json's vignette coefficients, V_lens the
 simulator's lens vignette and B = cos(alpha)^m its lamp's beam about the optical axis (the
-lamp's 5 cm offset from the lens is left out: under 1 degree beyond 3 m); the exposures as the
+lamp's 5 cm offset from the lens is left out: under 1 degree beyond 3 m); where calibration.json
+has the beam (lamp_beam_exponent and lamp_beam_lens), the same for the estimate in that form,
+V_lens,est cos(alpha)^m_est, which the odometry's lamp factor applies (column "V_lens cos^m"); and
+a last line with what the sextic alone costs with the exact model on the camera (halo_floors); the exposures as the
 median relative error of the online estimates (calibration.json's `exposures`) against the
 reported ones, after the one factor that aligns them best in log (the median ratio), over the
 frames the front end estimated from its tracks. The frames it restarted at the reported value
@@ -94,6 +97,65 @@ def exposure_errors(calibration):
     return 100.0 * median([abs(r / scale - 1.0) for r in ratios]), restarted
 
 
+def solve3(a, b):
+    """x with a x = b for a 3 x 3 list of rows (Gaussian elimination with partial pivoting)."""
+    m = [row[:] + [rhs] for row, rhs in zip(a, b)]
+    for c in range(3):
+        pivot = max(range(c, 3), key=lambda r: abs(m[r][c]))
+        m[c], m[pivot] = m[pivot], m[c]
+        for r in range(c + 1, 3):
+            f = m[r][c] / m[c][c]
+            m[r] = [x - f * y for x, y in zip(m[r], m[c])]
+    x = [0.0, 0.0, 0.0]
+    for r in (2, 1, 0):
+        x[r] = (m[r][3] - sum(m[r][k] * x[k] for k in range(r + 1, 3))) / m[r][r]
+    return x
+
+
+def sextic_fit(samples):
+    """v of 1 + v1 r^2 + v2 r^4 + v3 r^6 closest (least squares) to [(r, value)], V(0) = 1."""
+    ata = [[0.0] * 3 for _ in range(3)]
+    atb = [0.0] * 3
+    for r, value in samples:
+        t = r * r
+        row = (t, t * t, t * t * t)
+        for i in range(3):
+            atb[i] += row[i] * (value - 1.0)
+            for j in range(3):
+                ata[i][j] += row[i] * row[j]
+    return solve3(ata, atb)
+
+
+def halo_floors(cam, lens, m_true):
+    """What the halo factor's representation alone costs on this camera, with the exact model:
+    the sextic 1 + v1 r^2 + v2 r^4 + v3 r^6 cannot follow V_lens cos(alpha)^m all the way to the
+    corner. Returns (free, (flat error, flat m), (lens error, lens m)): the sextic closest to the
+    truth over the image; the sextic the back end holds for cos(alpha)^m (a flat lens,
+    `calibration.lamp_halo: beam`) and for V_lens cos(alpha)^m (the lens given), each fitted
+    along the diagonal as BeamHalo does (core/photometric/beam_halo.cpp), at the m that does best."""
+    fx, fy, cx, cy, w, h = cam["fx"], cam["fy"], cam["cx"], cam["cy"], cam["width"], cam["height"]
+    half_diagonal = math.hypot(0.5 * (w - 1), 0.5 * (h - 1))
+    grid = []
+    for y in range(0, h, 8):
+        for x in range(0, w, 8):
+            r = math.hypot(x - 0.5 * (w - 1), y - 0.5 * (h - 1)) / half_diagonal
+            cos_alpha = 1.0 / math.sqrt(1.0 + ((x - cx) / fx) ** 2 + ((y - cy) / fy) ** 2)
+            grid.append((r, radial(lens, r) * cos_alpha ** m_true))
+    error = lambda v: sum(abs(radial(v, r) - truth) for r, truth in grid) / len(grid)
+    free = error(sextic_fit(grid))
+    diagonal = []
+    for i in range(64):
+        r = (i + 0.5) / 64
+        px, py = 0.5 * (w - 1) * (1 + r), 0.5 * (h - 1) * (1 + r)
+        diagonal.append((r, 1.0 / math.sqrt(1.0 + ((px - cx) / fx) ** 2 + ((py - cy) / fy) ** 2)))
+    def best(lens_factor):
+        at = lambda m: error(sextic_fit([(r, lens_factor(r) * c ** m) for r, c in diagonal]))
+        m = min((0.1 * k for k in range(20, 101)), key=at)
+        m = min((m + 0.005 * k for k in range(-20, 21)), key=at)
+        return at(m), m
+    return free, best(lambda r: 1.0), best(lambda r: radial(lens, r))
+
+
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
@@ -107,6 +169,7 @@ def main():
         del args[at:at + 2]
     bench, mode = args[0], (args[1] if len(args) > 1 else "illuminated")
     rows = []
+    floors = None
     runs = [(run, os.path.basename(os.path.dirname(run)), os.path.basename(os.path.dirname(run)))
             for run in sorted(glob.glob(os.path.join(bench, "runs", "*", mode)))]
     for folder in offsets:
@@ -123,15 +186,23 @@ def main():
         fx, fy, cx, cy, w, h = cam["fx"], cam["fy"], cam["cx"], cam["cy"], cam["width"], cam["height"]
         lens = truth["vignette"]["coefficients"]
         m_true = truth["illuminator"]["beam"]["exponent_m"]
+        if floors is None:
+            floors = (cam, lens, m_true, halo_floors(cam, lens, m_true))
         estimate = json.load(open(os.path.join(run, "calibration", "calibration.json")))
         v = estimate["vignette"]["coefficients"]
         half_diagonal = math.hypot(0.5 * (w - 1), 0.5 * (h - 1))
-        halo = []
+        # The beam's own form, V_lens cos(alpha)^m, as the odometry's lamp factor applies it
+        # (calibration.json's lamp_beam_lens, from 2026-12-06 on), beside the sextic "vignette".
+        m_est, beam_lens = estimate.get("lamp_beam_exponent"), estimate.get("lamp_beam_lens")
+        halo, beam_halo = [], []
         for y in range(0, h, 8):
             for x in range(0, w, 8):
                 r = math.hypot(x - 0.5 * (w - 1), y - 0.5 * (h - 1)) / half_diagonal
                 cos_alpha = 1.0 / math.sqrt(1.0 + ((x - cx) / fx) ** 2 + ((y - cy) / fy) ** 2)
-                halo.append(abs(radial(v, r) - radial(lens, r) * cos_alpha ** m_true))
+                truth_here = radial(lens, r) * cos_alpha ** m_true
+                halo.append(abs(radial(v, r) - truth_here))
+                if m_est is not None and beam_lens is not None:
+                    beam_halo.append(abs(radial(beam_lens, r) * cos_alpha ** m_est - truth_here))
         est = read_inverse_response(os.path.join(run, "calibration", "pcalib.txt"))
         tru = read_inverse_response(os.path.join(folders[0], "pcalib.txt"))
         response = [abs(a - b) for a, b in zip(est, tru)]
@@ -142,17 +213,18 @@ def main():
         # gamma preset, which is the simulator's curve too): an error of 0 there says nothing.
         held = "response held" in (estimate.get("convergence") or {}).get("status", "")
         rows.append((sequence, sum(response) / 256, max(response), sum(halo) / len(halo), max(halo),
-                     estimate.get("lamp_beam_exponent"), exposure, restarted, shape, scale, held))
+                     estimate.get("lamp_beam_exponent"), exposure, restarted, shape, scale, held,
+                     sum(beam_halo) / len(beam_halo) if beam_halo else None))
     if not rows:
         sys.exit(f"no runs in {bench}/runs/*/{mode}")
-    print("| Sequence | response mean / max [grey levels] | modulo s (s) | halo factor mean / max | beam exponent m "
-          "| exposure median [%] (frames restarted) |")
-    print("|---|---:|---:|---:|---:|---:|")
-    for s, rm, rx, hm, hx, m, e, restarted, shape, scale, held in rows:
+    print("| Sequence | response mean / max [grey levels] | modulo s (s) | halo factor mean / max | V_lens cos^m mean "
+          "| beam exponent m | exposure median [%] (frames restarted) |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for s, rm, rx, hm, hx, m, e, restarted, shape, scale, held, bh in rows:
         modulo = "-" if shape is None or held else f"{shape:.2f} ({scale:.2f})"
         response = "held at its start" if held else f"{rm:.2f} / {rx:.1f}"
-        print(f"| {s} | {response} | {modulo} | {hm:.4f} / {hx:.3f} | {'-' if m is None else f'{m:.2f}'} "
-              f"| {'-' if e is None else f'{e:.2f}'} ({restarted}) |")
+        print(f"| {s} | {response} | {modulo} | {hm:.4f} / {hx:.3f} | {'-' if bh is None else f'{bh:.4f}'} "
+              f"| {'-' if m is None else f'{m:.2f}'} | {'-' if e is None else f'{e:.2f}'} ({restarted}) |")
     n = len(rows)
     estimated = [r for r in rows if not r[10]]  # the response's columns: runs that estimated it
     exposures = [r[6] for r in rows if r[6] is not None]
@@ -160,14 +232,23 @@ def main():
     shapes = [r[8] for r in estimated if r[8] is not None]
     shape_mean = f"{sum(shapes) / len(shapes):.2f}" if shapes else "-"
     response_mean = f"{sum(r[1] for r in estimated) / len(estimated):.2f}" if estimated else "-"
-    print(f"| mean | {response_mean} | {shape_mean} | {sum(r[3] for r in rows) / n:.4f} | | {exposure_mean} |")
+    beams = [r[11] for r in rows if r[11] is not None]
+    beam_mean = f"{sum(beams) / len(beams):.4f}" if beams else "-"
+    print(f"| mean | {response_mean} | {shape_mean} | {sum(r[3] for r in rows) / n:.4f} | {beam_mean} | | {exposure_mean} |")
     held_note = f" ({n - len(estimated)} held the response at its start, left out of its columns)" if len(estimated) < n else ""
+    beam_note = f" (as V_lens cos^m: {sum(b < 0.005 for b in beams)} of {len(beams)})" if beams else ""
     print(f"\nresponse mean < 2 on {sum(r[1] < 2 for r in estimated)} of {len(estimated)}{held_note}, halo mean < 0.005 on "
-          f"{sum(r[3] < 0.005 for r in rows)} of {n}")
+          f"{sum(r[3] < 0.005 for r in rows)} of {n}{beam_note}")
+    cam, lens, m_true, (free, flat, given) = floors
+    print(f"the halo factor's sextic alone, with the exact model (first run's camera, fx {cam['fx']:.1f}, true m "
+          f"{m_true:.3f}): closest to V_lens B over the image {free:.4f}; through cos(alpha)^m along the diagonal "
+          f"(a flat lens, lamp_halo: beam) {flat[0]:.4f} at m {flat[1]:.2f}; through V_lens cos(alpha)^m {given[0]:.4f} "
+          f"at m {given[1]:.2f}")
     if offsets:
         response_median = f"{median_of([r[1] for r in estimated]):.2f}" if estimated else "-"
         print(f"over the {n} runs: response median {response_median}, above 8 grey levels on "
-              f"{sum(r[1] > 8 for r in estimated)}; halo factor median {median_of([r[3] for r in rows]):.4f}")
+              f"{sum(r[1] > 8 for r in estimated)}; halo factor median {median_of([r[3] for r in rows]):.4f}"
+              + (f" (as V_lens cos^m {median_of(beams):.4f})" if beams else ""))
 
 
 if __name__ == "__main__":

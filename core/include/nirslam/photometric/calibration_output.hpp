@@ -10,7 +10,8 @@
 //   times.txt         "id timestamp_s exposure_ms": the ESTIMATED exposure of every frame that has
 //                     one, in the input's frame ids (relative units under Normalisation)
 //   calibration.json  response and vignette coefficients, ambiguity resolution and detail,
-//                     convergence, per-frame exposures (estimated and reported), errors if known
+//                     convergence, per-frame exposures (estimated and reported), errors if known,
+//                     and under a lamp modelled as lens times beam the beam's exponent and lens
 
 #include <cstdint>
 #include <filesystem>

@@ -77,6 +77,11 @@ struct PhotometricEstimate {  // immutable once published
   // The lamp's beam exponent m when the halo factor is a held lens vignette times cos(alpha)^m
   // (PhotometricBackendOptions::beam_halo); std::nullopt otherwise.
   std::optional<double> beam_exponent;
+  // ... and that lens vignette (flat with `calibration.lamp_halo: beam`). `vignette` is the sextic
+  // closest to beam_lens cos(alpha)^m, which the back end fits; beam_lens cos(alpha)^m itself is
+  // what the odometry's lamp factor applies, and it follows a steep beam further to the corners
+  // (beam_halo.hpp).
+  std::optional<VignetteModel> beam_lens;
 };
 
 struct ExposureSample {

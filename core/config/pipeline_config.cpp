@@ -180,6 +180,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   }
   calibration.read_flag("estimate_beam", pipeline.estimate_beam);
   calibration.read_flag("beam_in_odometry", pipeline.beam_in_odometry);
+  calibration.read_flag("beam_halo_exact", pipeline.calibration.backend.beam_halo_exact);
   if (const auto halo = calibration.read_text("lamp_halo")) {
     const auto model = lamp_halo_model_from_string(*halo);
     if (!model) calibration.fail_at("lamp_halo", "expected polynomial or beam, got '" + *halo + "'");

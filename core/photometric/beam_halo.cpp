@@ -25,6 +25,8 @@ BeamHalo::BeamHalo(VignetteModel lens, const std::vector<double>& radii, const s
     basis.row(j) << t, t * t, t * t * t;
     lens_samples_[j] = lens_(r);
     log_cos_[j] = std::log(c);
+    if (!(r > 0.0) || (j > 0 && !(r > radii_.back()))) throw std::invalid_argument("beam halo: radii must be positive and increase");
+    radii_.push_back(r);
   }
   // P = (A^T A)^-1 A^T, once: every v(m) is then a product.
   projection_ = (basis.transpose() * basis).ldlt().solve(basis.transpose());
@@ -34,6 +36,17 @@ Eigen::Vector3d BeamHalo::vignette(double beam_exponent, Eigen::Vector3d* dv_dm)
   const Eigen::VectorXd halo = lens_samples_.array() * (beam_exponent * log_cos_.array()).exp();
   if (dv_dm != nullptr) *dv_dm = projection_ * (halo.array() * log_cos_.array()).matrix();
   return projection_ * (halo.array() - 1.0).matrix();
+}
+
+double BeamHalo::log_cos(double r) const {
+  // Segment [r0, r1] holding r: from (0, 0) to the first radius, then between given radii.
+  const auto upper = std::upper_bound(radii_.begin(), radii_.end(), r);
+  std::size_t i1 = static_cast<std::size_t>(upper - radii_.begin());
+  if (i1 >= radii_.size()) i1 = radii_.size() - 1;
+  const double r1 = radii_[i1], y1 = log_cos_[static_cast<Eigen::Index>(i1)];
+  const double r0 = i1 == 0 ? 0.0 : radii_[i1 - 1];
+  const double y0 = i1 == 0 ? 0.0 : log_cos_[static_cast<Eigen::Index>(i1 - 1)];
+  return y0 + (y1 - y0) * (r - r0) / (r1 - r0);
 }
 
 BeamHalo beam_halo_for_camera(const CameraModel& camera, const VignetteModel& lens, double initial_exponent) {

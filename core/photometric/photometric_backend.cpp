@@ -458,6 +458,10 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
                                 : static_cast<double>(grey);
           ob.bound = bound;
           ob.radius = VignetteModel::radius(p.x(), p.y(), kf.width, kf.height);
+          if (options_.beam_halo && options_.beam_halo_exact) {
+            ob.lens = options_.beam_halo->lens()(ob.radius);
+            ob.log_cos = options_.beam_halo->log_cos(ob.radius);
+          }
           ob.gradient_weight = mu / (mu + static_cast<double>(o->gradient_sq[static_cast<std::size_t>(k)]));
           ob.illumination = std::exp(static_cast<double>(o->log_illumination) - log_reference);
           observations_.push_back(ob);
@@ -487,10 +491,15 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
   }
 }
 
+double PhotometricBackend::halo_at(const State& state, const Observation& o) const {
+  if (options_.beam_halo && options_.beam_halo_exact) return o.lens * std::exp(state.q[0] * o.log_cos);
+  return vignette_at(state.v, o.radius);
+}
+
 double PhotometricBackend::lit_exposure(const State& state, const Observation& o) const {
   const double e = state.exposure[static_cast<std::size_t>(o.keyframe)];
-  if (!ambient_) return e * vignette_at(state.v, o.radius) * o.illumination;
-  return e * (vignette_at(state.v, o.radius) * o.illumination + state.ambient * o.ambient_weight);
+  if (!ambient_) return e * halo_at(state, o) * o.illumination;
+  return e * (halo_at(state, o) * o.illumination + state.ambient * o.ambient_weight);
 }
 
 const InverseResponse& PhotometricBackend::inverse_response(const Eigen::Vector4d& c) const {
@@ -971,7 +980,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     state.q = monotone_from_vignette(state.v);
     state.v = vignette_from_monotone(state.q);
   }
-  if (beam_steps) {
+  if (options_.beam_halo) {  // held or estimated, q holds m (State)
     state.q = Eigen::Vector3d(beam_exponent_, 0.0, 0.0);
     state.v = options_.beam_halo->vignette(beam_exponent_);
   }
@@ -1157,7 +1166,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           const Observation& o = observations_[static_cast<std::size_t>(i)];
           const double e = st.exposure[static_cast<std::size_t>(o.keyframe)];
           const double r2 = o.radius * o.radius;
-          const double V = vignette_at(st.v, o.radius);
+          const double V = halo_at(st, o);
           // The light's factor a rides with e V; with ambient light e (V a + kappa w) multiplies L.
           const double eV = ambient_ ? e * (V * o.illumination + st.ambient * o.ambient_weight) : e * V * o.illumination;
           // Linearised at the observed irradiance G(I) or, in the predicted form, at e V a L; the
@@ -1199,10 +1208,14 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           if (step.vignette_estimated) {
             // With ambient light only the lamp's part goes through V: -L a / (V a + kappa w).
             const double dV = ambient_ ? -L * o.illumination * e / eV : -L / V;
-            jg[4] = dV * r2;
-            jg[5] = dV * r2 * r2;
-            jg[6] = dV * r2 * r2 * r2;
-            if (monotone_steps || beam_steps) jg.tail<3>() = dv_dq_t * jg.tail<3>().eval();
+            if (beam_steps && options_.beam_halo_exact) {
+              jg.tail<3>() = Eigen::Vector3d(dV * V * o.log_cos, 0.0, 0.0);  // dV/dm = V log cos(alpha)
+            } else {
+              jg[4] = dV * r2;
+              jg[5] = dV * r2 * r2;
+              jg[6] = dV * r2 * r2 * r2;
+              if (monotone_steps || beam_steps) jg.tail<3>() = dv_dq_t * jg.tail<3>().eval();
+            }
           } else {
             jg.tail<3>().setZero();
           }
@@ -1411,8 +1424,8 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
         candidate.q = monotone_from_vignette(candidate.v);
         candidate.v = vignette_from_monotone(candidate.q);
       }
-      if (beam_steps) {
-        candidate.q = Eigen::Vector3d(initial_v ? options_.beam_halo->initial_exponent() : state.q[0], 0.0, 0.0);
+      if (options_.beam_halo) {
+        candidate.q = Eigen::Vector3d(beam_steps && initial_v ? options_.beam_halo->initial_exponent() : state.q[0], 0.0, 0.0);
         candidate.v = options_.beam_halo->vignette(candidate.q[0]);
       }
       candidate.exposure = state.exposure;
@@ -1473,7 +1486,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     shares.reserve(points_.size());
     for (const Point& p : points_) {
       const Observation& o = observations_[static_cast<std::size_t>(p.begin)];  // the reference (a = 1)
-      shares.push_back(state.ambient * o.ambient_weight / (vignette_at(state.v, o.radius) + state.ambient * o.ambient_weight));
+      shares.push_back(state.ambient * o.ambient_weight / (halo_at(state, o) + state.ambient * o.ambient_weight));
     }
     step.ambient_share = median_in_place(shares);
   }

@@ -216,7 +216,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  min_reference_ncc: 0.7\n  lamp_mode_min_reference_ncc: 0.9\n  min_corner_isotropy: 0.1\n"
                 "  point_rejection_sigmas: 3.5\n  lamp_mode_point_rejection_sigmas: 2\n"
                 "  point_rejection: against-its-patch\n  point_rejection_whole_tracks: true\n"
-                "  lamp_mode_ambient: true\n  gradient_mu: 0.5\n  lamp_mode_gradient_mu: 2\n"));
+                "  lamp_mode_ambient: true\n  gradient_mu: 0.5\n  lamp_mode_gradient_mu: 2\n  beam_halo_exact: true\n"));
   EXPECT_EQ(config.worker.pipeline.mode, PipelineMode::Odometry);
   EXPECT_FALSE(config.worker.pipeline_mode_automatic) << "a named mode is not automatic";
   EXPECT_EQ(config.worker.pipeline.odometry.points_per_frame, 1500);
@@ -237,6 +237,8 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_TRUE(config.worker.pipeline.calibration.backend.lit_ambient);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.gradient_mu, 0.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.lit_gradient_mu, 2.0);
+  EXPECT_TRUE(config.worker.pipeline.calibration.backend.beam_halo_exact);
+  EXPECT_FALSE(PipelineOptions{}.calibration.backend.beam_halo_exact);
   EXPECT_FALSE(config.worker.pipeline.calibration.keyframes_follow_deformation);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.vignette_rim_curvature_weight, 0.25);
   EXPECT_TRUE(config.worker.pipeline.lamp_mode_keyframes_follow_surface);

@@ -302,6 +302,7 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
     const VignetteModel lens = std::getenv("NIRSLAM_PHOTOMETRIC_BEAM_FLAT_LENS") != nullptr ? VignetteModel{} : sim_options.vignette;
     options.backend.beam_halo = beam_halo_for_camera(*Simulator(sim_options).camera(), lens, std::atof(start));
     options.backend.initial_vignette.v = options.backend.beam_halo->vignette(std::atof(start));
+    options.backend.beam_halo_exact = std::getenv("NIRSLAM_PHOTOMETRIC_BEAM_EXACT") != nullptr;
     std::printf("beam halo from m = %s; the simulator's m %.3f\n", start,
                 Simulator(sim_options).lighting(sim_options.powers_w.front()).illuminator.beam_exponent());
   }

@@ -33,6 +33,9 @@ public:
 
   // v of the polynomial closest to V_lens cos(alpha)^m; with dv_dm, its derivative in m.
   Eigen::Vector3d vignette(double beam_exponent, Eigen::Vector3d* dv_dm = nullptr) const;
+  // log cos(alpha) at radius r, linear between the radii given (0 at r = 0, the last interval
+  // continued beyond them).
+  double log_cos(double r) const;
   const VignetteModel& lens() const { return lens_; }
   double initial_exponent() const { return initial_exponent_; }
 
@@ -41,6 +44,7 @@ private:
   double initial_exponent_ = 0.0;
   Eigen::Matrix<double, 3, Eigen::Dynamic> projection_;  // P: samples minus 1 -> v
   Eigen::VectorXd lens_samples_, log_cos_;
+  std::vector<double> radii_;  // ascending, with log_cos_ (the constructor's order)
 };
 
 // Radii along the diagonal of `camera`'s image (centre + r (corner - centre), 64 of them) and

@@ -353,6 +353,11 @@ struct PhotometricBackendOptions {
   // when set, the vignette's only unknown is m (starting from its initial exponent), in place of
   // v1..v3 and of the steps above; initial_vignette should be its v at that start.
   std::optional<BeamHalo> beam_halo;
+  // With beam_halo: each sample's halo factor as V_lens(r) cos(alpha(r))^m itself (true) or as the
+  // sextic closest to it (false; BeamHalo::vignette). The sextic cannot follow a 30-degree beam to
+  // the corners (0.0046-0.0051 mean over the image on the bench's camera, README "Illuminator
+  // correction", session 40), and the odometry's lamp factor applies the beam's own form.
+  bool beam_halo_exact = false;
   // Points whose observations the fitted model cannot explain are left out and the solve goes on
   // without them: after the solve, a point (one grid pixel of a track) whose rms residual over its
   // normal samples exceeds this many robust standard deviations of all the window's residuals
@@ -485,6 +490,9 @@ private:
     // least G(grey)) is free of cost; -1: dark, only s >= 0 is.
     int bound = 0;
     double ambient_weight = 0.0;  // w of ambient_grey_residual (ambient_)
+    // With options.beam_halo_exact: V_lens(radius) and log cos(alpha(radius)) of the beam.
+    double lens = 1.0;
+    double log_cos = 0.0;
   };
   // The residual s of an observation as the cost sees it: unchanged for a normal sample, 0 where
   // a clipped sample's bound holds.
@@ -495,13 +503,18 @@ private:
   struct State {
     Eigen::Vector4d c = Eigen::Vector4d::Zero();
     Eigen::Vector3d v = Eigen::Vector3d::Zero();
-    Eigen::Vector3d q = Eigen::Vector3d::Zero();  // v = vignette_from_monotone(q) with monotone steps; (m, 0, 0) with beam steps
+    // v = vignette_from_monotone(q) with monotone steps; (m, 0, 0) with a beam (options.beam_halo),
+    // held or estimated, v then the sextic of m.
+    Eigen::Vector3d q = Eigen::Vector3d::Zero();
     std::vector<double> exposure;  // window keyframes, divided by the median
     std::vector<double> radiance;  // per point
     double ambient = 0.0;          // kappa (ambient_)
     std::vector<double> u;         // per observation, for c
     double cost = 0.0;
   };
+  // The halo factor V at an observation under `state`: the sextic v, or with
+  // options.beam_halo_exact the beam's own form V_lens cos(alpha)^m, m = state.q[0].
+  double halo_at(const State& state, const Observation& o) const;
   void build_problem(const std::vector<int>& window);
   void update_u(State& state) const;
   double data_cost(const State& state, double delta) const;

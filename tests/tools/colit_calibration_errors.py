@@ -126,13 +126,9 @@ def sextic_fit(samples):
     return solve3(ata, atb)
 
 
-def halo_floors(cam, lens, m_true):
-    """What the halo factor's representation alone costs on this camera, with the exact model:
-    the sextic 1 + v1 r^2 + v2 r^4 + v3 r^6 cannot follow V_lens cos(alpha)^m all the way to the
-    corner. Returns (free, (flat error, flat m), (lens error, lens m)): the sextic closest to the
-    truth over the image; the sextic the back end holds for cos(alpha)^m (a flat lens,
-    `calibration.lamp_halo: beam`) and for V_lens cos(alpha)^m (the lens given), each fitted
-    along the diagonal as BeamHalo does (core/photometric/beam_halo.cpp), at the m that does best."""
+def halo_grid(cam, lens, m_true):
+    """[(r, cos(alpha), V_lens(r) cos(alpha)^m_true)] over every 8th pixel of the camera's image:
+    where and against what every halo factor here is measured."""
     fx, fy, cx, cy, w, h = cam["fx"], cam["fy"], cam["cx"], cam["cy"], cam["width"], cam["height"]
     half_diagonal = math.hypot(0.5 * (w - 1), 0.5 * (h - 1))
     grid = []
@@ -140,20 +136,34 @@ def halo_floors(cam, lens, m_true):
         for x in range(0, w, 8):
             r = math.hypot(x - 0.5 * (w - 1), y - 0.5 * (h - 1)) / half_diagonal
             cos_alpha = 1.0 / math.sqrt(1.0 + ((x - cx) / fx) ** 2 + ((y - cy) / fy) ** 2)
-            grid.append((r, radial(lens, r) * cos_alpha ** m_true))
-    error = lambda v: sum(abs(radial(v, r) - truth) for r, truth in grid) / len(grid)
-    free = error(sextic_fit(grid))
+            grid.append((r, cos_alpha, radial(lens, r) * cos_alpha ** m_true))
+    return grid
+
+
+def halo_floors(cam, grid, lens):
+    """What the halo factor's representation alone costs on this camera, with the exact model:
+    the sextic 1 + v1 r^2 + v2 r^4 + v3 r^6 cannot follow V_lens cos(alpha)^m all the way to the
+    corner. Returns (free, flat, given, flat_exact), each but the first (error, m): the sextic
+    closest to the truth over the image; the sextic the back end holds for cos(alpha)^m (a flat
+    lens, `calibration.lamp_halo: beam`) and for V_lens cos(alpha)^m (the lens given), each fitted
+    along the diagonal as BeamHalo does (core/photometric/beam_halo.cpp), at the m that does best;
+    and cos(alpha)^m itself (the flat lens in the beam's own form, `beam_halo_exact`) at its best m."""
+    fx, fy, cx, cy, w, h = cam["fx"], cam["fy"], cam["cx"], cam["cy"], cam["width"], cam["height"]
+    error = lambda v: sum(abs(radial(v, r) - truth) for r, _, truth in grid) / len(grid)
+    free = error(sextic_fit([(r, truth) for r, _, truth in grid]))
     diagonal = []
     for i in range(64):
         r = (i + 0.5) / 64
         px, py = 0.5 * (w - 1) * (1 + r), 0.5 * (h - 1) * (1 + r)
         diagonal.append((r, 1.0 / math.sqrt(1.0 + ((px - cx) / fx) ** 2 + ((py - cy) / fy) ** 2)))
-    def best(lens_factor):
-        at = lambda m: error(sextic_fit([(r, lens_factor(r) * c ** m) for r, c in diagonal]))
+    def best(at):
         m = min((0.1 * k for k in range(20, 101)), key=at)
         m = min((m + 0.005 * k for k in range(-20, 21)), key=at)
         return at(m), m
-    return free, best(lambda r: 1.0), best(lambda r: radial(lens, r))
+    through_sextic = lambda lens_factor: lambda m: error(sextic_fit([(r, lens_factor(r) * c ** m) for r, c in diagonal]))
+    flat_exact = lambda m: sum(abs(c ** m - truth) for _, c, truth in grid) / len(grid)
+    return (free, best(through_sextic(lambda r: 1.0)), best(through_sextic(lambda r: radial(lens, r))),
+            best(flat_exact))
 
 
 def main():
@@ -183,26 +193,19 @@ def main():
             sys.exit(f"{run}: no sequence {base}_* in {bench}/sequences")
         truth = json.load(open(os.path.join(folders[0], "groundtruth.json")))
         cam = truth["camera"]
-        fx, fy, cx, cy, w, h = cam["fx"], cam["fy"], cam["cx"], cam["cy"], cam["width"], cam["height"]
         lens = truth["vignette"]["coefficients"]
         m_true = truth["illuminator"]["beam"]["exponent_m"]
+        grid = halo_grid(cam, lens, m_true)
         if floors is None:
-            floors = (cam, lens, m_true, halo_floors(cam, lens, m_true))
+            floors = (cam, m_true, halo_floors(cam, grid, lens))
         estimate = json.load(open(os.path.join(run, "calibration", "calibration.json")))
         v = estimate["vignette"]["coefficients"]
-        half_diagonal = math.hypot(0.5 * (w - 1), 0.5 * (h - 1))
         # The beam's own form, V_lens cos(alpha)^m, as the odometry's lamp factor applies it
         # (calibration.json's lamp_beam_lens, from 2026-12-06 on), beside the sextic "vignette".
         m_est, beam_lens = estimate.get("lamp_beam_exponent"), estimate.get("lamp_beam_lens")
-        halo, beam_halo = [], []
-        for y in range(0, h, 8):
-            for x in range(0, w, 8):
-                r = math.hypot(x - 0.5 * (w - 1), y - 0.5 * (h - 1)) / half_diagonal
-                cos_alpha = 1.0 / math.sqrt(1.0 + ((x - cx) / fx) ** 2 + ((y - cy) / fy) ** 2)
-                truth_here = radial(lens, r) * cos_alpha ** m_true
-                halo.append(abs(radial(v, r) - truth_here))
-                if m_est is not None and beam_lens is not None:
-                    beam_halo.append(abs(radial(beam_lens, r) * cos_alpha ** m_est - truth_here))
+        halo = [abs(radial(v, r) - truth_here) for r, _, truth_here in grid]
+        beam_halo = ([abs(radial(beam_lens, r) * c ** m_est - truth_here) for r, c, truth_here in grid]
+                     if m_est is not None and beam_lens is not None else [])
         est = read_inverse_response(os.path.join(run, "calibration", "pcalib.txt"))
         tru = read_inverse_response(os.path.join(folders[0], "pcalib.txt"))
         response = [abs(a - b) for a, b in zip(est, tru)]
@@ -239,11 +242,12 @@ def main():
     beam_note = f" (as V_lens cos^m: {sum(b < 0.005 for b in beams)} of {len(beams)})" if beams else ""
     print(f"\nresponse mean < 2 on {sum(r[1] < 2 for r in estimated)} of {len(estimated)}{held_note}, halo mean < 0.005 on "
           f"{sum(r[3] < 0.005 for r in rows)} of {n}{beam_note}")
-    cam, lens, m_true, (free, flat, given) = floors
+    cam, m_true, (free, flat, given, flat_exact) = floors
     print(f"the halo factor's sextic alone, with the exact model (first run's camera, fx {cam['fx']:.1f}, true m "
           f"{m_true:.3f}): closest to V_lens B over the image {free:.4f}; through cos(alpha)^m along the diagonal "
           f"(a flat lens, lamp_halo: beam) {flat[0]:.4f} at m {flat[1]:.2f}; through V_lens cos(alpha)^m {given[0]:.4f} "
-          f"at m {given[1]:.2f}")
+          f"at m {given[1]:.2f}; a flat lens in the beam's own form, cos(alpha)^m, {flat_exact[0]:.4f} at m "
+          f"{flat_exact[1]:.2f}")
     if offsets:
         response_median = f"{median_of([r[1] for r in estimated]):.2f}" if estimated else "-"
         print(f"over the {n} runs: response median {response_median}, above 8 grey levels on "

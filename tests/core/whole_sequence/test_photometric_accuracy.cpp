@@ -29,7 +29,9 @@ namespace nirslam {
 namespace {
 
 using test_photometric::calibration_sequence;
+using test_photometric::co_lit;
 using test_photometric::constant_radiance;
+using test_photometric::true_light_cosine;
 
 struct AccuracyRun {
   PhotometricErrors errors;
@@ -56,33 +58,6 @@ struct AccuracyRun {
   double first_frame_exposure_median = 0.0;
   std::shared_ptr<const PhotometricEstimate> estimate;
 };
-
-// The co-located 50 W lamp as the light (with the scene's faint ambient light).
-SimulatorOptions co_lit(sim::SceneKind scene, ResponsePreset response, int frames) {
-  SimulatorOptions o = calibration_sequence(scene, response, frames);
-  o.powers_w = {50.0};
-  // Diagnosis: the ambient light (the scene's own by default) does not fall off with the lamp's distance.
-  if (const char* ambient = std::getenv("NIRSLAM_PHOTOMETRIC_COLIT_AMBIENT")) o.ambient_irradiance = std::atof(ambient);
-  // Diagnosis: the beam's half angle (30 degrees by default; the halo factor V B is a sextic in r
-  // within 0.0048 on average at 30, 0.0010 at 45 degrees).
-  if (const char* half = std::getenv("NIRSLAM_PHOTOMETRIC_COLIT_BEAM_HALF_ANGLE")) o.beam_half_angle_deg = std::atof(half);
-  // Diagnosis: the lamp's offset below the lens (5 cm by default), metres.
-  if (const char* below = std::getenv("NIRSLAM_PHOTOMETRIC_COLIT_LAMP_BELOW")) o.light_offset_cam = Eigen::Vector3d(0.0, std::atof(below), 0.0);
-  return o;
-}
-
-// The lamp's true incidence cos(theta) at the surface seen through `pixel` from the camera pose
-// T_world_cam (a ray cast into the scene; its normal against the direction to the lamp);
-// std::nullopt where the ray hits nothing.
-std::optional<double> true_light_cosine(const Simulator& sim, const SE3& T_world_cam, const Eigen::Vector2d& pixel) {
-  const auto ray = sim.camera()->unproject(pixel);
-  if (!ray) return std::nullopt;
-  const Eigen::Vector3d origin = T_world_cam.translation();
-  const auto hit = sim::cast_ray(sim.scene(), origin, T_world_cam * ray->normalized() - origin);
-  if (!hit) return std::nullopt;
-  const Eigen::Vector3d light = T_world_cam * sim.options().light_offset_cam;
-  return hit->normal.dot((light - hit->point).normalized());
-}
 
 // A sum of four uniforms on [-0.5, 0.5] (roughly normal, variance 1/3: times sqrt(3) for unit
 // variance), a fixed function of key.

@@ -113,6 +113,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read_flag("exposure_follows_surface", pipeline.calibration.exposure.follow_deformation);
   calibration.read_flag("keyframes_by_reported_exposure", pipeline.calibration.keyframes_by_reported_exposure);
   calibration.read_flag("track_near_border", pipeline.calibration.tracker.skip_coarse_levels_at_border);
+  calibration.read_flag("align_first_patch", pipeline.calibration.tracker.align_reference_affine);
   calibration.read<double>("vignette_rim_curvature_weight", pipeline.calibration.backend.vignette_rim_curvature_weight, 0.0, 1e6);
   // The straightness prior on log G above the observed grey range, without and with the lamp's
   // factor (photometric_backend.hpp, log_curvature_weight and lit_log_curvature_weight).

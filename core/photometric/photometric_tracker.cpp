@@ -176,6 +176,82 @@ std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::
   return result;
 }
 
+std::optional<AffinePatchAlignment> align_patch_affine(const cv::Mat& image, const PatchSamples& reference,
+                                                       const Eigen::Vector2d& position, const Eigen::Matrix2d& warp,
+                                                       const PhotometricTrackerOptions& options) {
+  using Vector8d = Eigen::Matrix<double, 8, 1>;
+  using Matrix8d = Eigen::Matrix<double, 8, 8>;
+  AffinePatchAlignment out;
+  out.position = position;
+  out.warp = warp;
+  // The warped patch and one pixel around it for the central differences.
+  const auto inside = [&](const Eigen::Vector2d& c, const Eigen::Matrix2d& W) {
+    const double reach = kPatchRadius * (W.cwiseAbs().rowwise().sum().maxCoeff()) + 1.0;
+    return std::isfinite(reach) && c.allFinite() && c.x() - reach >= 0.0 && c.y() - reach >= 0.0 &&
+           c.x() + reach < image.cols - 1 && c.y() + reach < image.rows - 1;
+  };
+  if (!inside(out.position, out.warp)) return std::nullopt;
+  {  // (a, b) matching mean and contrast at the start
+    PatchSamples current;
+    for (int i = 0; i < kPatchSide; ++i)
+      for (int j = 0; j < kPatchSide; ++j) {
+        const Eigen::Vector2d w = out.position + out.warp * Eigen::Vector2d(j - kPatchRadius, i - kPatchRadius);
+        current[i * kPatchSide + j] = bilinear_sample(image, w.x(), w.y());
+      }
+    const double mean0 = reference.mean(), mean1 = current.mean();
+    const double sd0 = std::sqrt((reference.array() - static_cast<float>(mean0)).square().mean());
+    const double sd1 = std::sqrt((current.array() - static_cast<float>(mean1)).square().mean());
+    if (!(sd0 > 1e-6)) return std::nullopt;
+    out.gain = sd1 / sd0;
+    out.bias = mean1 - out.gain * mean0;
+  }
+  for (int iteration = 0; iteration < 2 * options.max_iterations; ++iteration) {
+    // r = I(c + W o) - a T(o) - b; dr/dc = grad I, dr/dW_rs = (grad I)_r o_s, dr/da = -T, dr/db = -1.
+    Matrix8d H = Matrix8d::Zero();
+    Vector8d g = Vector8d::Zero();
+    double squared = 0.0;
+    for (int i = 0; i < kPatchSide; ++i)
+      for (int j = 0; j < kPatchSide; ++j) {
+        const double ox = j - kPatchRadius, oy = i - kPatchRadius;
+        const Eigen::Vector2d w = out.position + out.warp * Eigen::Vector2d(ox, oy);
+        const double I = bilinear_sample(image, w.x(), w.y());
+        const double Ix = 0.5 * (bilinear_sample(image, w.x() + 1.0, w.y()) - bilinear_sample(image, w.x() - 1.0, w.y()));
+        const double Iy = 0.5 * (bilinear_sample(image, w.x(), w.y() + 1.0) - bilinear_sample(image, w.x(), w.y() - 1.0));
+        const double T = reference[i * kPatchSide + j];
+        const double r = I - out.gain * T - out.bias;
+        Vector8d J;
+        J << Ix, Iy, Ix * ox, Ix * oy, Iy * ox, Iy * oy, -T, -1.0;
+        H.noalias() += J * J.transpose();
+        g += J * r;
+        squared += r * r;
+      }
+    out.residual_rms = std::sqrt(squared / kPatchPixels);
+    const Vector8d step = -H.ldlt().solve(g);
+    if (!step.allFinite()) return std::nullopt;
+    out.position += step.head<2>();
+    out.warp(0, 0) += step[2];
+    out.warp(0, 1) += step[3];
+    out.warp(1, 0) += step[4];
+    out.warp(1, 1) += step[5];
+    out.gain += step[6];
+    out.bias += step[7];
+    if (!inside(out.position, out.warp)) return std::nullopt;
+    if (step.head<2>().norm() < options.convergence_px && step.segment<4>(2).norm() * kPatchRadius < options.convergence_px) break;
+  }
+  {  // the residual at the final values
+    double squared = 0.0;
+    for (int i = 0; i < kPatchSide; ++i)
+      for (int j = 0; j < kPatchSide; ++j) {
+        const Eigen::Vector2d w = out.position + out.warp * Eigen::Vector2d(j - kPatchRadius, i - kPatchRadius);
+        const double r = bilinear_sample(image, w.x(), w.y()) - out.gain * reference[i * kPatchSide + j] - out.bias;
+        squared += r * r;
+      }
+    out.residual_rms = std::sqrt(squared / kPatchPixels);
+  }
+  if (!(out.gain >= options.min_brightness_gain && out.gain <= options.max_brightness_gain)) return std::nullopt;
+  return out;
+}
+
 PhotometricTracker::PhotometricTracker(PhotometricTrackerOptions options)
     : options_(options), deformation_(options_.deformation) {
   if (options_.pyramid_levels < 1 || options_.max_tracks < 1 || options_.min_tracks < 0 || options_.grid_cols < 1 ||
@@ -243,8 +319,20 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame, const cv::Ma
       observation.position = forward->position;
       observation.age = old.age + 1;
       observation.brightness_gain = forward->brightness_gain;
-      if (!sample_patch(pyramid[0], observation.position, observation.samples)) return std::nullopt;
       observation.reference = old.reference;
+      observation.surface = old.surface;
+      if (options_.align_reference_affine) {
+        const auto aligned = align_patch_affine(pyramid[0], old.reference, forward->position, old.reference_warp, options_);
+        if (!aligned || (aligned->position - forward->position).norm() > options_.max_reference_shift_px ||
+            aligned->residual_rms > options_.max_residual_rms)
+          return std::nullopt;
+        const double area = aligned->warp.determinant();
+        if (!(area >= 1.0 / options_.max_area_change && area <= options_.max_area_change)) return std::nullopt;
+        observation.position = aligned->position;
+        observation.reference_warp = aligned->warp;
+        observation.deformation = aligned->warp;
+      }
+      if (!sample_patch(pyramid[0], observation.position, observation.samples)) return std::nullopt;
       if (options_.min_reference_ncc > 0.0 &&
           normalised_cross_correlation(observation.samples, observation.reference) < options_.min_reference_ncc)
         return std::nullopt;
@@ -264,7 +352,8 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame, const cv::Ma
   next.intensity = pyramid[0];
   current_ = std::move(next);
   if (static_cast<int>(current_.tracks.size()) < options_.min_tracks) detect(pyramid, detection_allowed);
-  if (options_.estimate_deformation) deformation_.update(current_);
+  if (options_.align_reference_affine) current_.deformation_estimated = true;  // each track's own warp
+  else if (options_.estimate_deformation) deformation_.update(current_);
   previous_pyramid_ = std::move(pyramid);
   return current_;
 }

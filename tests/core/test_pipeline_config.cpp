@@ -70,6 +70,7 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_EQ(config.worker.pipeline.lamp_mode_track_near_border, PipelineOptions{}.lamp_mode_track_near_border);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_reference_ncc, PhotometricTrackerOptions{}.min_reference_ncc);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_corner_isotropy, PhotometricTrackerOptions{}.min_corner_isotropy);
+  EXPECT_EQ(config.worker.pipeline.calibration.tracker.align_reference_affine, PhotometricTrackerOptions{}.align_reference_affine);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_min_reference_ncc, PipelineOptions{}.lamp_mode_min_reference_ncc);
   EXPECT_EQ(config.worker.pipeline.calibration.exposure.follow_deformation,
             OnlineCalibrationOptions{}.exposure.follow_deformation);
@@ -208,7 +209,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
                 "  lamp_cosine_from_inverse_depth_plane: false\nodometry:\n  points_per_frame: 1500\n"
                 "  window_size: 5\n  affine_a_prior_known_exposure: 2.5\n  surface_normal_fit: inverse-depth-plane\n"
                 "calibration:\n  background_thread: false\n  iterations_per_keyframe: 2\n  estimate_model: false\n"
-                "  track_near_border: true\n  keyframes_follow_surface: false\n  vignette_rim_curvature_weight: 0.25\n"
+                "  track_near_border: true\n  align_first_patch: true\n  keyframes_follow_surface: false\n  vignette_rim_curvature_weight: 0.25\n"
                 "  lamp_mode_keyframes_follow_surface: true\n  lamp_mode_vignette_rim_curvature_weight: 0.5\n"
                 "  lamp_mode_track_near_border: false\n  exposure_follows_surface: false\n"
                 "  lamp_mode_exposure_follows_surface: true\n  keyframes_by_reported_exposure: false\n"
@@ -230,6 +231,7 @@ TEST(PipelineConfig, PipelineSectionsSetModeAndStageOptions) {
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_reference_ncc, 0.7);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.lamp_mode_min_reference_ncc, 0.9);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.tracker.min_corner_isotropy, 0.1);
+  EXPECT_TRUE(config.worker.pipeline.calibration.tracker.align_reference_affine);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.point_rejection_sigmas, 3.5);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.lit_point_rejection_sigmas, 2.0);
   EXPECT_EQ(config.worker.pipeline.calibration.backend.rejection, PhotometricBackendOptions::Rejection::AgainstItsPatch);

@@ -130,8 +130,12 @@ TEST(PhotometricAccuracy, DiagnoseLampObservations) {
   if (const char* m = std::getenv("NIRSLAM_DIAG_MIN_NCC")) tracker_options.min_reference_ncc = std::atof(m);
   if (const char* g = std::getenv("NIRSLAM_DIAG_PAIR_GAIN")) tracker_options.frame_pair_gain = std::atoi(g) != 0;
   // NIRSLAM_DIAG_FOLLOW: variant A's grids follow each track's deformation (the tracker's estimate).
-  const bool follow = std::getenv("NIRSLAM_DIAG_FOLLOW") != nullptr;
+  // NIRSLAM_DIAG_AFFINE: the tracker aligns each track's first patch under an affine warp, and
+  // variant A's grids follow that warp.
+  const bool affine = std::getenv("NIRSLAM_DIAG_AFFINE") != nullptr;
+  const bool follow = affine || std::getenv("NIRSLAM_DIAG_FOLLOW") != nullptr;
   tracker_options.estimate_deformation = follow;
+  tracker_options.align_reference_affine = affine;
   PhotometricTracker tracker(tracker_options);
 
   LampVariant A{'A', "image", {}}, B{'B', "noise-free image", {}}, C{'C', "rendered radiance @ tracked px", {}},

@@ -268,6 +268,9 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
   if (const char* follow = std::getenv("NIRSLAM_PHOTOMETRIC_FOLLOW_DEFORMATION")) options.exposure.follow_deformation = std::atoi(follow) != 0;
   // The back end's keyframe observations follow the surface (keyframe_selection.hpp; =0 a fixed grid).
   if (const char* follow = std::getenv("NIRSLAM_PHOTOMETRIC_BACKEND_FOLLOW")) options.keyframes_follow_deformation = std::atoi(follow) != 0;
+  // The tracker aligns each track's first patch under an affine warp (PhotometricTrackerOptions::
+  // align_reference_affine), the deformation the grids then follow.
+  if (const char* affine = std::getenv("NIRSLAM_PHOTOMETRIC_TRACK_AFFINE")) options.tracker.align_reference_affine = std::atoi(affine) != 0;
   // The neighbourhood the deformation is fitted over (track_deformation.hpp, 60 px by default).
   if (const char* r = std::getenv("NIRSLAM_PHOTOMETRIC_NEIGHBOUR_RADIUS")) options.tracker.deformation.neighbour_radius_px = std::atof(r);
   // The halo factor as the true lens vignette times the beam, the beam's exponent the only

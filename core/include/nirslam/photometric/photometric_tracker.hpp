@@ -91,6 +91,18 @@ struct PhotometricTrackerOptions {
   // curved response and the vignette an exposure change does not scale every grey value alike
   // (issue 6's table over three draws: vignette rows met 14 -> 9, session 36).
   bool frame_pair_gain = false;
+  // After each frame-to-frame step, align the track's FIRST patch to the frame under an affine
+  // warp (I(c + W o) = a T(o) + b over the patch offsets o; Gauss-Newton from the step's position
+  // and the last frame's W), and take c as the position and W as the track's deformation
+  // (TrackedFrame::deformation_estimated; the neighbours' estimate is then not run). A
+  // translation-only patch in frame-to-frame steps lands 1-2 px off its surface point as the
+  // image magnifies (the simulated tunnel under the lamp: PhotometricAccuracy.
+  // DiagnoseLampObservations), and the calibration takes the samples there for that point.
+  // A track whose first patch does not align within max_reference_shift_px of the step, within
+  // max_residual_rms, or with det W outside [1 / max_area_change, max_area_change] ends.
+  bool align_reference_affine = false;
+  double max_reference_shift_px = 2.0;
+  double max_area_change = 4.0;
   double black_level = 0.03;               // for the frame's black / saturated fractions
   double saturation_level = 0.97;
   // Each track's deformation since birth from its neighbours (track_deformation.hpp), for
@@ -145,6 +157,22 @@ inline float bilinear_sample(const cv::Mat& image, double x, double y) {
 // Samples the patch centred at `position` (bilinear). false when it does not fit in the image.
 bool sample_patch(const cv::Mat& image, const Eigen::Vector2d& position, PatchSamples& samples);
 
+// A patch `reference` (kPatchSide x kPatchSide samples, row-major) aligned to `image` (CV_32FC1)
+// under an affine warp and brightness change: I(position + warp o) = gain T(o) + bias over the
+// patch offsets o, by Gauss-Newton from the given values. std::nullopt when the warped patch
+// leaves the image, a step is not finite or the brightness gain goes out of
+// [min_brightness_gain, max_brightness_gain].
+struct AffinePatchAlignment {
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d warp = Eigen::Matrix2d::Identity();
+  double gain = 1.0;
+  double bias = 0.0;
+  double residual_rms = 0.0;  // fraction of full scale
+};
+std::optional<AffinePatchAlignment> align_patch_affine(const cv::Mat& image, const PatchSamples& reference,
+                                                       const Eigen::Vector2d& position, const Eigen::Matrix2d& warp,
+                                                       const PhotometricTrackerOptions& options);
+
 struct TrackObservation {
   std::int64_t id = 0;
   Eigen::Vector2d position = Eigen::Vector2d::Zero();
@@ -157,6 +185,8 @@ struct TrackObservation {
   // a track's observations of different surfaces are not of the same surface points.
   Eigen::Matrix2d deformation = Eigen::Matrix2d::Identity();
   std::int32_t surface = 0;
+  // With align_reference_affine: the warp W of the first patch into this frame (I at detection).
+  Eigen::Matrix2d reference_warp = Eigen::Matrix2d::Identity();
 };
 
 // Why the previous frame's tracks that were not followed into a frame ended, by the first check

@@ -321,18 +321,28 @@ const TrackedFrame& PhotometricTracker::process(const Frame& frame, const cv::Ma
       observation.brightness_gain = forward->brightness_gain;
       observation.reference = old.reference;
       observation.surface = old.surface;
+      observation.reference_warp = old.reference_warp;
+      bool new_surface = false;
       if (options_.align_reference_affine) {
         const auto aligned = align_patch_affine(pyramid[0], old.reference, forward->position, old.reference_warp, options_);
-        if (!aligned || (aligned->position - forward->position).norm() > options_.max_reference_shift_px ||
-            aligned->residual_rms > options_.max_residual_rms)
-          return std::nullopt;
-        const double area = aligned->warp.determinant();
-        if (!(area >= 1.0 / options_.max_area_change && area <= options_.max_area_change)) return std::nullopt;
-        observation.position = aligned->position;
-        observation.reference_warp = aligned->warp;
-        observation.deformation = aligned->warp;
+        const double area = aligned ? aligned->warp.determinant() : 0.0;
+        if (aligned && (aligned->position - forward->position).norm() <= options_.max_reference_shift_px &&
+            aligned->residual_rms <= options_.max_residual_rms && area >= 1.0 / options_.max_area_change &&
+            area <= options_.max_area_change) {
+          observation.position = aligned->position;
+          observation.reference_warp = aligned->warp;
+        } else {
+          // The first patch no longer models this one (a glossy reflection, an occlusion, too much
+          // deformation) while the step itself passed its checks: the track goes on from here as a
+          // new surface, its patch now the first one.
+          observation.reference_warp.setIdentity();
+          observation.surface = old.surface + 1;
+          new_surface = true;
+        }
+        observation.deformation = observation.reference_warp;
       }
       if (!sample_patch(pyramid[0], observation.position, observation.samples)) return std::nullopt;
+      if (new_surface) observation.reference = observation.samples;
       if (options_.min_reference_ncc > 0.0 &&
           normalised_cross_correlation(observation.samples, observation.reference) < options_.min_reference_ncc)
         return std::nullopt;

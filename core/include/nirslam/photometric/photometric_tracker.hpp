@@ -98,8 +98,10 @@ struct PhotometricTrackerOptions {
   // translation-only patch in frame-to-frame steps lands 1-2 px off its surface point as the
   // image magnifies (the simulated tunnel under the lamp: PhotometricAccuracy.
   // DiagnoseLampObservations), and the calibration takes the samples there for that point.
-  // A track whose first patch does not align within max_reference_shift_px of the step, within
-  // max_residual_rms, or with det W outside [1 / max_area_change, max_area_change] ends.
+  // Where the first patch does not align within max_reference_shift_px of the step, within
+  // max_residual_rms, or with det W outside [1 / max_area_change, max_area_change], the track
+  // goes on from the step's position as a new surface (TrackObservation::surface + 1), its patch
+  // there the new first patch.
   bool align_reference_affine = false;
   double max_reference_shift_px = 2.0;
   double max_area_change = 4.0;

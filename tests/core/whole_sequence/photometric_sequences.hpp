@@ -59,6 +59,9 @@ inline SimulatorOptions constant_radiance(sim::SceneKind scene, ResponsePreset r
   return o;
 }
 
+// A simulated frame's exposure as the back end takes it: the reported time times the gain.
+inline double reported_exposure(const Frame& frame) { return *frame.exposure_ms * frame.gain.value_or(1.0); }
+
 // The co-located 50 W lamp as the light (with the scene's faint ambient light).
 inline SimulatorOptions co_lit(sim::SceneKind scene, ResponsePreset response, int frames) {
   SimulatorOptions o = calibration_sequence(scene, response, frames);

@@ -174,8 +174,6 @@ TEST(PhotometricAccuracy, DiagnoseLampObservations) {
   while (auto f = sim.next(true)) {
     const Frame& frame = f->frame;
     const TrackedFrame& tracked = tracker.process(frame);
-    const double e = *frame.exposure_ms * frame.gain.value_or(1.0);
-    const SE3 T_cw = f->T_world_cam.inverse();
     // Each track's factor at its centre, as the co-lit table hands it (true distance and cosine).
     std::vector<double> log_illumination(tracked.tracks.size(), std::nan(""));
     for (std::size_t i = 0; i < tracked.tracks.size(); ++i) {
@@ -209,6 +207,8 @@ TEST(PhotometricAccuracy, DiagnoseLampObservations) {
     const bool keyframe = index % 3 == 0 && tracked.tracks.size() >= 20;
     ++index;
     if (!keyframe) continue;
+    const double e = test_photometric::reported_exposure(frame);
+    const SE3 T_cam_world = f->T_world_cam.inverse();
     const PhotometricKeyframe ka = make_photometric_keyframe(tracked, frame.timestamp_s, e, true, 0.03, 0.97, lamp_off ? nullptr : &log_illumination, follow);
     const Frame clean_frame = clean.expose(f->radiance, *frame.exposure_ms, frame.gain.value_or(1.0), 0);
     cv::Mat clean_image;
@@ -237,7 +237,7 @@ TEST(PhotometricAccuracy, DiagnoseLampObservations) {
         const SurfacePoint& sp = slot[kk];
         if (!sp.ok) continue;
         km.observations[j].grey[kk] = exact_grey(e, V_lens(p) * sp.model_radiance * B_cam(p) * std::exp(log_illumination[row]));
-        const Eigen::Vector3d in_cam = T_cw * sp.world;
+        const Eigen::Vector3d in_cam = T_cam_world * sp.world;
         const auto q = camera->project(in_cam);
         if (!q || q->x() < 2 || q->y() < 2 || q->x() > o.width - 3 || q->y() > o.height - 3) continue;
         if (!(std::abs(bilinear(f->depth, q->x(), q->y()) - in_cam.z()) < 0.01 * in_cam.z())) continue;  // hidden
@@ -268,15 +268,9 @@ TEST(PhotometricAccuracy, DiagnoseLampObservations) {
         if (k == kBackendPixels / 2) kpc.observations[j].grey[kk] = kp.observations[j].grey[kk];
       }
     }
-    A.keyframes.push_back(ka);
-    B.keyframes.push_back(kb);
-    C.keyframes.push_back(kc);
-    Cd.keyframes.push_back(kcd);
-    F.keyframes.push_back(kf);
-    D.keyframes.push_back(kd);
-    P.keyframes.push_back(kp);
-    Pc.keyframes.push_back(kpc);
-    M.keyframes.push_back(km);
+    for (const auto& [variant, keyframe] : {std::pair{&A, &ka}, {&B, &kb}, {&C, &kc}, {&Cd, &kcd}, {&F, &kf}, {&D, &kd},
+                                            {&P, &kp}, {&Pc, &kpc}, {&M, &km}})
+      variant->keyframes.push_back(*keyframe);
   }
   std::printf("%s: %zu keyframes, the simulator's beam exponent %.3f\n", spec.c_str(), A.keyframes.size(), true_m);
   std::printf("radius bin: count, mean log(L(tracked) / L(true)) %%, mean drift px, mean radial drift px (+ outward)\n");

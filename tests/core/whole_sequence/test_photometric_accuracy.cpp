@@ -316,7 +316,7 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
     OnlinePhotometricCalibration calibration(options);
     for (const SimulatedFrame& f : sequence.frames) {
       Frame frame = f.frame;
-      const double e = *frame.exposure_ms * frame.gain.value_or(1.0);
+      const double e = test_photometric::reported_exposure(frame);
       truth.exposures.emplace_back(frame.index, e);
       e_min = std::min(e_min, e);
       e_max = std::max(e_max, e);

@@ -195,7 +195,7 @@ TEST(PhotometricAccuracy, DiagnoseObservations) {
   while (auto f = sim.next(true)) {
     const Frame& frame = f->frame;
     const TrackedFrame& tracked = tracker.process(frame);
-    const double e = *frame.exposure_ms * frame.gain.value_or(1.0);
+    const double e = test_photometric::reported_exposure(frame);
     const SE3 T_cw = f->T_world_cam.inverse();
     // Anchor new tracks: back-project each back-end pixel with the true depth.
     for (const TrackObservation& t : tracked.tracks) {
@@ -724,7 +724,7 @@ TEST(PhotometricAccuracy, DiagnoseFollowing) {
     const Frame& frame = f->frame;
     const int frame_index = index++;
     const TrackedFrame& tracked = tracker.process(frame);
-    const double e = *frame.exposure_ms * frame.gain.value_or(1.0);
+    const double e = test_photometric::reported_exposure(frame);
     const SE3 T_cw = f->T_world_cam.inverse();
     if (frame_index % 30 == 0)  // the scene cast agrees with the rendered frame (one ray per pixel)
       for (int y = 20; y < o.height; y += 40)

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <tuple>
 #include <utility>
 
 #include <Eigen/Cholesky>
@@ -24,6 +25,17 @@ double normalised_cross_correlation(const PatchSamples& a, const PatchSamples& b
   const Eigen::ArrayXf db = b.array() - b.mean();
   const double denominator = std::sqrt(static_cast<double>(da.square().sum()) * static_cast<double>(db.square().sum()));
   return denominator > 0.0 ? static_cast<double>((da * db).sum()) / denominator : 0.0;
+}
+
+// The brightness change (a, b) that gives `current` the mean and contrast of `reference` scaled:
+// current ~ a reference + b. std::nullopt for a flat reference.
+std::optional<std::pair<double, double>> matching_brightness(const PatchSamples& reference, const PatchSamples& current) {
+  const double mean0 = reference.mean();
+  const double mean1 = current.mean();
+  const double sd0 = std::sqrt((reference.array() - static_cast<float>(mean0)).square().mean());
+  const double sd1 = std::sqrt((current.array() - static_cast<float>(mean1)).square().mean());
+  if (!(sd0 > 1e-6)) return std::nullopt;
+  return std::pair{sd1 / sd0, mean1 - sd1 / sd0 * mean0};
 }
 
 constexpr int kTemplateSide = kPatchSide + 2;  // one extra pixel each side for the gradient
@@ -129,13 +141,10 @@ std::optional<PatchTrack> track_patch(const std::vector<cv::Mat>& a, const std::
     if (!sample_patch(image1, p1, current)) return std::nullopt;
     // Closed-form (a, b) at the start position: matching mean and contrast, so the first
     // position steps are taken with the brightness change already roughly right.
-    const double mean0 = t.mean();
-    const double mean1 = current.mean();
-    const double sd0 = std::sqrt((t.array() - static_cast<float>(mean0)).square().mean());
-    const double sd1 = std::sqrt((current.array() - static_cast<float>(mean1)).square().mean());
-    if (!(sd0 > 1e-6)) return std::nullopt;
-    double gain = pair_gain ? *pair_gain : sd1 / sd0;
-    double bias = pair_gain ? 0.0 : mean1 - gain * mean0;
+    const auto matched = matching_brightness(t, current);
+    if (!matched) return std::nullopt;
+    double gain = pair_gain ? *pair_gain : matched->first;
+    double bias = pair_gain ? 0.0 : matched->second;
 
     for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
       if (iteration > 0 && !sample_patch(image1, p1, current)) return std::nullopt;
@@ -198,18 +207,14 @@ std::optional<AffinePatchAlignment> align_patch_affine(const cv::Mat& image, con
         const Eigen::Vector2d w = out.position + out.warp * Eigen::Vector2d(j - kPatchRadius, i - kPatchRadius);
         current[i * kPatchSide + j] = bilinear_sample(image, w.x(), w.y());
       }
-    const double mean0 = reference.mean(), mean1 = current.mean();
-    const double sd0 = std::sqrt((reference.array() - static_cast<float>(mean0)).square().mean());
-    const double sd1 = std::sqrt((current.array() - static_cast<float>(mean1)).square().mean());
-    if (!(sd0 > 1e-6)) return std::nullopt;
-    out.gain = sd1 / sd0;
-    out.bias = mean1 - out.gain * mean0;
+    const auto matched = matching_brightness(reference, current);
+    if (!matched) return std::nullopt;
+    std::tie(out.gain, out.bias) = *matched;
   }
   for (int iteration = 0; iteration < 2 * options.max_iterations; ++iteration) {
     // r = I(c + W o) - a T(o) - b; dr/dc = grad I, dr/dW_rs = (grad I)_r o_s, dr/da = -T, dr/db = -1.
     Matrix8d H = Matrix8d::Zero();
     Vector8d g = Vector8d::Zero();
-    double squared = 0.0;
     for (int i = 0; i < kPatchSide; ++i)
       for (int j = 0; j < kPatchSide; ++j) {
         const double ox = j - kPatchRadius, oy = i - kPatchRadius;
@@ -223,9 +228,7 @@ std::optional<AffinePatchAlignment> align_patch_affine(const cv::Mat& image, con
         J << Ix, Iy, Ix * ox, Ix * oy, Iy * ox, Iy * oy, -T, -1.0;
         H.noalias() += J * J.transpose();
         g += J * r;
-        squared += r * r;
       }
-    out.residual_rms = std::sqrt(squared / kPatchPixels);
     const Vector8d step = -H.ldlt().solve(g);
     if (!step.allFinite()) return std::nullopt;
     out.position += step.head<2>();

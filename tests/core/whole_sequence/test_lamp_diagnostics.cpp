@@ -65,19 +65,19 @@ struct LampVariant {
 };
 
 // A surface point under one back-end pixel of a track, fixed where the track was first seen.
-struct SurfacePoint {
+struct AnchoredSurfacePoint {
   Eigen::Vector3d world = Eigen::Vector3d::Zero();
   double lamp_invariant = 0.0;  // L d^2 / (B(alpha) cos(theta)) from the first frame (albedo J0 / pi)
   double model_radiance = 0.0;  // the back end's L_p: G(I) / (e V_lens B_cam a) at the first frame
   bool ok = false;
 };
 
-struct BeamFit {
+struct LampBeamFit {
   double beam_exponent = 0.0;
   double response_mean_grey = 0.0;
 };
 
-BeamFit fit_beam(const LampVariant& v, const SimulatorOptions& o, const Simulator& sim, double true_m, bool estimate_response,
+LampBeamFit fit_lamp_beam(const LampVariant& v, const SimulatorOptions& o, const Simulator& sim, double true_m, bool estimate_response,
               double mu) {
   PhotometricBackendOptions b;
   b.initial_response = o.response;
@@ -142,7 +142,7 @@ TEST(PhotometricAccuracy, DiagnoseLampObservations) {
       Cd{'c', "rendered radiance @ tracked px, D's samples", {}}, F{'F', "image @ true projection", {}},
       D{'D', "rendered radiance @ true projection", {}}, P{'P', "lamp model @ surface point (no radiance map)", {}},
       Pc{'p', "lamp model @ surface point, centre pixels only", {}}, M{'M', "the back end's own model (check)", {}};
-  std::map<std::int64_t, std::array<SurfacePoint, kBackendPixels>> points;
+  std::map<std::int64_t, std::array<AnchoredSurfacePoint, kBackendPixels>> points;
   const double k_sens = o.sensitivity * 1e-3;
   const auto V_lens = [&](const Eigen::Vector2d& p) { return o.vignette(VignetteModel::radius(p.x(), p.y(), o.width, o.height)); };
   const auto B_cam = [&](const Eigen::Vector2d& p) {
@@ -190,7 +190,7 @@ TEST(PhotometricAccuracy, DiagnoseLampObservations) {
       auto& slot = points[t.id];
       if (!std::isfinite(log_illumination[i])) continue;  // never usable: its first factor is unknown
       for (int k = 0; k < kBackendPixels; ++k) {
-        SurfacePoint& sp = slot[static_cast<std::size_t>(k)];
+        AnchoredSurfacePoint& sp = slot[static_cast<std::size_t>(k)];
         const Eigen::Vector2d p = t.position + backend_pixel_offset(k);
         const auto ray = camera->unproject(p);
         if (!ray || !depth_smooth_at(f->depth, p, 1)) continue;
@@ -234,7 +234,7 @@ TEST(PhotometricAccuracy, DiagnoseLampObservations) {
         const Eigen::Vector2d p = ka.observations[j].pixel(k);
         kc.observations[j].grey[kk] = exact_grey(e, V_lens(p) * bilinear(f->radiance, p.x(), p.y()));
         for (PhotometricKeyframe* k_variant : {&kcd, &kd, &kf, &kp, &kpc, &km}) k_variant->observations[j].grey[kk] = -1.0f;
-        const SurfacePoint& sp = slot[kk];
+        const AnchoredSurfacePoint& sp = slot[kk];
         if (!sp.ok) continue;
         km.observations[j].grey[kk] = exact_grey(e, V_lens(p) * sp.model_radiance * B_cam(p) * std::exp(log_illumination[row]));
         const Eigen::Vector3d in_cam = T_cam_world * sp.world;
@@ -268,9 +268,9 @@ TEST(PhotometricAccuracy, DiagnoseLampObservations) {
         if (k == kBackendPixels / 2) kpc.observations[j].grey[kk] = kp.observations[j].grey[kk];
       }
     }
-    for (const auto& [variant, keyframe] : {std::pair{&A, &ka}, {&B, &kb}, {&C, &kc}, {&Cd, &kcd}, {&F, &kf}, {&D, &kd},
+    for (const auto& [variant, built] : {std::pair{&A, &ka}, {&B, &kb}, {&C, &kc}, {&Cd, &kcd}, {&F, &kf}, {&D, &kd},
                                             {&P, &kp}, {&Pc, &kpc}, {&M, &km}})
-      variant->keyframes.push_back(*keyframe);
+      variant->keyframes.push_back(*built);
   }
   std::printf("%s: %zu keyframes, the simulator's beam exponent %.3f\n", spec.c_str(), A.keyframes.size(), true_m);
   std::printf("radius bin: count, mean log(L(tracked) / L(true)) %%, mean drift px, mean radial drift px (+ outward)\n");
@@ -285,8 +285,8 @@ TEST(PhotometricAccuracy, DiagnoseLampObservations) {
   const double mu = std::getenv("NIRSLAM_PHOTOMETRIC_LIT_MU") ? std::atof(std::getenv("NIRSLAM_PHOTOMETRIC_LIT_MU")) : 25.0;
   for (const LampVariant* v : {&M, &Pc, &P, &D, &Cd, &C, &F, &B, &A}) {
     if (which != nullptr && std::string(which).find(v->name) == std::string::npos) continue;
-    const BeamFit held = fit_beam(*v, o, sim, true_m, false, mu);
-    const BeamFit joint = fit_beam(*v, o, sim, true_m, true, mu);
+    const LampBeamFit held = fit_lamp_beam(*v, o, sim, true_m, false, mu);
+    const LampBeamFit joint = fit_lamp_beam(*v, o, sim, true_m, true, mu);
     // The harness itself: data that fit the back end's model give back the simulator's beam.
     if (v == &M) {
       EXPECT_NEAR(held.beam_exponent, true_m, 0.01);

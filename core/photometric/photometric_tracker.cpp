@@ -200,17 +200,18 @@ std::optional<AffinePatchAlignment> align_patch_affine(const cv::Mat& image, con
            c.x() + reach < image.cols - 1 && c.y() + reach < image.rows - 1;
   };
   if (!inside(out.position, out.warp)) return std::nullopt;
-  {  // (a, b) matching mean and contrast at the start
-    PatchSamples current;
+  PatchSamples current;
+  const auto sample_warped = [&] {  // the patch under the current position and warp
     for (int i = 0; i < kPatchSide; ++i)
       for (int j = 0; j < kPatchSide; ++j) {
         const Eigen::Vector2d w = out.position + out.warp * Eigen::Vector2d(j - kPatchRadius, i - kPatchRadius);
         current[i * kPatchSide + j] = bilinear_sample(image, w.x(), w.y());
       }
-    const auto matched = matching_brightness(reference, current);
-    if (!matched) return std::nullopt;
-    std::tie(out.gain, out.bias) = *matched;
-  }
+  };
+  sample_warped();  // (a, b) matching mean and contrast at the start
+  const auto matched = matching_brightness(reference, current);
+  if (!matched) return std::nullopt;
+  std::tie(out.gain, out.bias) = *matched;
   for (int iteration = 0; iteration < 2 * options.max_iterations; ++iteration) {
     // r = I(c + W o) - a T(o) - b; dr/dc = grad I, dr/dW_rs = (grad I)_r o_s, dr/da = -T, dr/db = -1.
     Matrix8d H = Matrix8d::Zero();
@@ -241,16 +242,13 @@ std::optional<AffinePatchAlignment> align_patch_affine(const cv::Mat& image, con
     if (!inside(out.position, out.warp)) return std::nullopt;
     if (step.head<2>().norm() < options.convergence_px && step.segment<4>(2).norm() * kPatchRadius < options.convergence_px) break;
   }
-  {  // the residual at the final values
-    double squared = 0.0;
-    for (int i = 0; i < kPatchSide; ++i)
-      for (int j = 0; j < kPatchSide; ++j) {
-        const Eigen::Vector2d w = out.position + out.warp * Eigen::Vector2d(j - kPatchRadius, i - kPatchRadius);
-        const double r = bilinear_sample(image, w.x(), w.y()) - out.gain * reference[i * kPatchSide + j] - out.bias;
-        squared += r * r;
-      }
-    out.residual_rms = std::sqrt(squared / kPatchPixels);
+  sample_warped();  // the residual at the final values
+  double squared = 0.0;
+  for (int k = 0; k < kPatchPixels; ++k) {
+    const double r = current[k] - out.gain * reference[k] - out.bias;
+    squared += r * r;
   }
+  out.residual_rms = std::sqrt(squared / kPatchPixels);
   if (!(out.gain >= options.min_brightness_gain && out.gain <= options.max_brightness_gain)) return std::nullopt;
   return out;
 }

@@ -228,7 +228,10 @@ std::string given_calibration_header(const BenchOptions& o, const std::vector<st
   const GivenCalibrationParts held = app_config().worker.pipeline.given_calibration_holds;
   const std::string part = held == GivenCalibrationParts::Both ? std::string("both held, nothing estimated online")
                            : held == GivenCalibrationParts::Response
-                               ? std::string("the response (pcalib.txt) held, the halo factor estimated online")
+                               ? std::string(app_config().worker.pipeline.lamp_halo == LampHaloModel::Beam
+                                                 ? "the response (pcalib.txt) held, the halo factor estimated online "
+                                                   "(in the illuminated mode as the lamp's beam over a flat lens)"
+                                                 : "the response (pcalib.txt) held, the halo factor estimated online")
                                : fmt::format("the lens vignette (vignette.png) held, the lamp's beam (exponent {}{}) {}, "
                                              "the response estimated online",
                                              app_config().worker.pipeline.odometry.beam_exponent,

@@ -74,8 +74,9 @@ static bool halo_is_the_beam(const PipelineOptions& o) {
 // illuminated mode's lamp factor carrying the beam.
 static bool odometry_carries_beam(const PipelineOptions& o) {
   if (o.mode != PipelineMode::Illuminated) return false;
-  if (o.given_calibration_folder.empty()) return halo_is_the_beam(o);
-  return o.beam_in_odometry && o.given_calibration_holds == GivenCalibrationParts::Vignette;
+  if (halo_is_the_beam(o)) return true;
+  return !o.given_calibration_folder.empty() && o.beam_in_odometry &&
+         o.given_calibration_holds == GivenCalibrationParts::Vignette;
 }
 
 std::optional<LampHaloModel> lamp_halo_model_from_string(const std::string& text) {
@@ -135,10 +136,14 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
   }
   const bool given_calibration = runs_calibration(options_.mode) && !options_.given_calibration_folder.empty();
   const double configured_beam_exponent = options_.odometry.beam_exponent;
-  if (halo_is_the_beam(options_) && given_calibration)
+  // A given response with the beam: the lamp-lit response is weakly determined online (README
+  // "Illuminator correction", session 41), one from a power or exposure sweep is not.
+  if (halo_is_the_beam(options_) && given_calibration &&
+      options_.given_calibration_holds != GivenCalibrationParts::Response)
     throw std::invalid_argument(
-        "calibration.lamp_halo: beam models the halo factor without a given calibration; with calibration.given, "
-        "use given_holds: vignette with estimate_beam and beam_in_odometry");
+        "calibration.lamp_halo: beam estimates the halo factor, so with calibration.given only the response can be "
+        "held (given_holds: response); for a given lens vignette use given_holds: vignette with estimate_beam and "
+        "beam_in_odometry");
   if (runs_calibration(options_.mode)) {
     // An estimated halo factor holds the beam; a given lens vignette held alone does not.
     if (!odometry_carries_beam(options_) &&
@@ -151,13 +156,13 @@ SlamPipeline::SlamPipeline(PipelineOptions options, std::shared_ptr<const Camera
   if (options_.beam_in_odometry && runs_calibration(options_.mode) && !halo_is_the_beam(options_) &&
       (!given_calibration || options_.given_calibration_holds != GivenCalibrationParts::Vignette))
     throw std::invalid_argument("calibration.beam_in_odometry needs the lens vignette held alone (calibration.given with given_holds: vignette)");
-  if (given_calibration) {
-    hold_given_calibration(configured_beam_exponent);
-  } else if (halo_is_the_beam(options_)) {
-    options_.calibration.given_part = "a flat lens (calibration.lamp_halo: beam; the lens's vignetting goes into the beam's m)";
+  if (given_calibration) hold_given_calibration(configured_beam_exponent);
+  if (halo_is_the_beam(options_)) {
+    if (!options_.calibration.given_part.empty()) options_.calibration.given_part += "; ";
+    options_.calibration.given_part += "a flat lens (calibration.lamp_halo: beam; the lens's vignetting goes into the beam's m)";
     hold_lens_vignette(VignetteModel{}, configured_beam_exponent, true);
     spdlog::info("halo factor modelled as the lamp's beam alone: {}", options_.calibration.given_part);
-  } else if (options_.estimate_beam && runs_calibration(options_.mode))
+  } else if (!given_calibration && options_.estimate_beam && runs_calibration(options_.mode))
     throw std::invalid_argument("calibration.estimate_beam needs a lens vignette given (calibration.given with given_holds: vignette)");
   if (const auto problem = lamp_distance_backfill_problem(options_))
     throw std::invalid_argument("pipeline.lamp_distance_backfill " + *problem);

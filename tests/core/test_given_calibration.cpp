@@ -396,6 +396,39 @@ TEST(GivenCalibration, HaloAsTheBeamAloneNeedsNoFilesAndLeavesTheBeamToTheOdomet
   }
 }
 
+// The lamp-lit response is weakly determined online (README "Illuminator correction", session
+// 41), so the fully online lamp mode can hold one from a sweep: given_holds: response with
+// lamp_halo: beam holds pcalib.txt, the lens flat, the beam's m estimated and left to the odometry.
+TEST(GivenCalibration, HaloAsTheBeamOverAGivenResponse) {
+  const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Filmic);
+  LampOverLensVignette setup("pipeline_halo_beam_response");
+  write_pcalib(setup.folder / "pcalib.txt", response.inverse_table(256));
+  const auto& camera = setup.camera;
+  PipelineOptions options = setup.options;
+  options.given_calibration_holds = GivenCalibrationParts::Response;
+  options.estimate_beam = false;
+  options.lamp_halo = LampHaloModel::Beam;
+  options.odometry.beam_exponent = 4.82;
+  SlamPipeline pipeline(options, camera);
+  auto estimate = pipeline.calibration()->estimate();
+  ASSERT_TRUE(estimate->beam_exponent);
+  EXPECT_DOUBLE_EQ(*estimate->beam_exponent, 4.82);
+  EXPECT_LT((estimate->vignette.v - beam_halo_for_camera(*camera, VignetteModel{}, 4.82).vignette(4.82)).norm(), 2e-3)
+      << "the halo factor starts as the beam over a flat lens, not the folder's vignette.png";
+  EXPECT_LT((estimate->response.coefficients() - response.coefficients()).norm(), 1e-3);
+  EXPECT_DOUBLE_EQ(pipeline.odometry()->options().beam_exponent, 4.82) << "the odometry's lamp factor carries the beam";
+  const std::string& given = pipeline.options().calibration.given_part;
+  EXPECT_NE(given.find("response given"), std::string::npos) << given;
+  EXPECT_NE(given.find("a flat lens"), std::string::npos) << given;
+  // Frames are G(I) of the held response over the flat lens; the response never re-estimated.
+  feed_noise_frames(pipeline, 8, [&](int, const Frame& frame, const PipelineFrameResult& result) {
+    const double grey = frame.image.at<std::uint8_t>(0, 0);
+    EXPECT_NEAR(result.corrected.at<float>(0, 0), 255.0 * response.inverse(grey / 255.0), 0.02 * grey + 0.5);
+  });
+  estimate = pipeline.calibration()->estimate();
+  EXPECT_LT((estimate->response.coefficients() - response.coefficients()).norm(), 1e-3);
+}
+
 TEST(GivenCalibration, PipelineHoldsTheGivenModel) {
   const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Filmic);
   const VignetteModel vignette{Eigen::Vector3d(-0.25, 0.0, 0.0)};

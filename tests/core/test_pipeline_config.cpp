@@ -188,6 +188,19 @@ TEST(PipelineConfig, GivenCalibrationBenchFileAddsTheBeam) {
   EXPECT_EQ(colit.worker.pipeline.track_light_cosines.fits_before_hold, 5);
   EXPECT_DOUBLE_EQ(colit.worker.pipeline.calibration.backend.lit_gradient_mu, 2.0);
   EXPECT_DOUBLE_EQ(colit.worker.pipeline.calibration.backend.gradient_mu, 0.25) << "lamp-off problems as by default";
+  // The same with the response held from a sweep (the folder given on the command line).
+  const PipelineConfig sweep = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-lamp-sweep-response.yaml");
+  EXPECT_EQ(sweep.worker.pipeline.given_calibration_holds, GivenCalibrationParts::Response);
+  EXPECT_EQ(sweep.worker.pipeline.lamp_halo, LampHaloModel::Beam);
+  EXPECT_TRUE(sweep.worker.pipeline.given_calibration_folder.empty());
+  EXPECT_EQ(sweep.worker.pipeline.lamp_distance_source, colit.worker.pipeline.lamp_distance_source);
+  EXPECT_EQ(sweep.worker.pipeline.lamp_distance_backfill, colit.worker.pipeline.lamp_distance_backfill);
+  EXPECT_EQ(sweep.worker.pipeline.lamp_cosine_to_calibration, colit.worker.pipeline.lamp_cosine_to_calibration);
+  EXPECT_DOUBLE_EQ(sweep.worker.pipeline.calibration.tracker.min_corner_isotropy, 0.1);
+  EXPECT_DOUBLE_EQ(sweep.worker.pipeline.track_light_cosines.min_cosine, 0.35);
+  EXPECT_DOUBLE_EQ(sweep.worker.pipeline.lamp_cosine_normal_radius_px, 40.0);
+  EXPECT_EQ(sweep.worker.pipeline.track_light_cosines.fits_before_hold, 5);
+  EXPECT_DOUBLE_EQ(sweep.worker.pipeline.calibration.backend.lit_gradient_mu, 2.0);
   // The lamp-off calibration that gives the lens vignette: repeatable, V straight at the rim.
   const PipelineConfig lens = load_pipeline_config(fs::path(NIRSLAM_SOURCE_DIR) / "config/lens-calibration.yaml");
   EXPECT_FALSE(lens.worker.pipeline.calibration.background_thread);

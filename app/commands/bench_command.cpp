@@ -223,9 +223,12 @@ RunSummary summary_of(const fs::path& run_dir) {
 // bench.md's first line when a calibration is given: which files, which part held, in which modes.
 std::string given_calibration_header(const BenchOptions& o, const std::vector<std::string>& given_modes) {
   if (!o.dataset_calibration && o.given_calibration.empty()) return {};
-  const std::string files = o.dataset_calibration ? "each sequence's own pcalib.txt and vignette.png"
-                                                  : "the pcalib.txt and vignette.png of " + o.given_calibration.string();
   const GivenCalibrationParts held = app_config().worker.pipeline.given_calibration_holds;
+  const std::string read = held == GivenCalibrationParts::Response ? "pcalib.txt"
+                           : held == GivenCalibrationParts::Vignette ? "vignette.png"
+                                                                     : "pcalib.txt and vignette.png";
+  const std::string files = o.dataset_calibration ? "each sequence's own " + read
+                                                  : "the " + read + " of " + o.given_calibration.string();
   const std::string part = held == GivenCalibrationParts::Both ? std::string("both held, nothing estimated online")
                            : held == GivenCalibrationParts::Response
                                ? std::string(app_config().worker.pipeline.lamp_halo == LampHaloModel::Beam

@@ -94,11 +94,27 @@ TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
   const auto lamp_md = lines_of(out / "bench.md");
   ASSERT_FALSE(lamp_md.empty());
   EXPECT_EQ(lamp_md[0].rfind("Photometric calibration given (run --photometric-calibration) in mode illuminated: the "
-                             "pcalib.txt and vignette.png of " + rig.string() + "; the lens vignette (vignette.png) held, "
+                             "vignette.png of " + rig.string() + "; the lens vignette (vignette.png) held, "
                              "the lamp's beam (exponent 4.82, refined online) in the odometry's lamp factor",
                              0),
             0u)
       << lamp_md[0];
+  // The response from a sweep held by the lamp mode, its halo factor the beam over a flat lens.
+  const fs::path sweep_config = fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-lamp-sweep-response.yaml";
+  const CommandResult swept = run_command(nirslam("--config '" + sweep_config.string() +
+                                                  "' bench --scenes room --powers 50 --frames 40 --size 320x240 --modes "
+                                                  "illuminated --photometric-calibration '" + rig.string() +
+                                                  "' --given-calibration-modes illuminated --out '" + out.string() + "'"));
+  ASSERT_EQ(swept.exit_code, 0) << swept.output;
+  EXPECT_NE(summary_text("illuminated").find("\"held\": \"response\""), std::string::npos) << summary_text("illuminated");
+  const auto swept_md = lines_of(out / "bench.md");
+  ASSERT_FALSE(swept_md.empty());
+  EXPECT_EQ(swept_md[0].rfind("Photometric calibration given (run --photometric-calibration) in mode illuminated: the "
+                              "pcalib.txt of " + rig.string() + "; the response (pcalib.txt) held, the halo factor "
+                              "estimated online (in the illuminated mode as the lamp's beam over a flat lens)",
+                              0),
+            0u)
+      << swept_md[0];
 }
 
 TEST(BenchCommand, AGivenCalibrationsModesAndFolderAreChecked) {

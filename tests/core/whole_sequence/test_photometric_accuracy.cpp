@@ -298,6 +298,11 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
     // =multi-start keeps the multi-start's probes (which may leave the true start).
     options.backend.multi_start = std::string(std::getenv("NIRSLAM_PHOTOMETRIC_START_TRUE")) == "multi-start";
   }
+  // The response held at the truth, as a sweep gives it (config/bench-lamp-sweep-response.yaml).
+  if (std::getenv("NIRSLAM_PHOTOMETRIC_HOLD_RESPONSE") != nullptr) {
+    options.backend.initial_response = sim_options.response;
+    options.backend.estimate_response = false;
+  }
   AccuracyRun out;
   PhotometricGroundTruth truth;
   truth.response = sim_options.response;

@@ -18,6 +18,7 @@
 #include "nirslam/image/image_files.hpp"
 #include "nirslam/photometric/exposure_sweep_calibration.hpp"
 #include "nirslam/photometric/response_model.hpp"
+#include "nirslam/session/session_format.hpp"
 
 namespace nirslam::app {
 namespace {
@@ -80,6 +81,49 @@ std::vector<PowerSweepImage> read_power_sweep(const fs::path& folder, int viewpo
   return images;
 }
 
+// A recorded session (`nirslam record`, the GUI's Record tab) as a power sweep: the rig held still
+// in front of a wall while the lamp is stepped through its powers. Every frame of the journal
+// needs its reported exposure and lamp power. Of each run of frames at one power the first
+// `kSettleFrames` are skipped (the lamp and the auto exposure settle after a change) and at most
+// `kFramesPerPower` of the rest taken, evenly spread: frames at one power add only noise
+// averaging, not another exposure. Frames at 0 W are skipped as in sweep.csv.
+std::vector<PowerSweepImage> read_power_sweep_session(const fs::path& folder) {
+  constexpr std::size_t kSettleFrames = 2;
+  constexpr std::size_t kFramesPerPower = 4;
+  const fs::path journal = folder / session_files::kJournal;
+  const JournalContents contents = read_journal(journal);
+  std::vector<std::vector<const JournalEntry*>> runs;
+  for (std::size_t i = 0; i < contents.entries.size(); ++i) {
+    const JournalEntry& entry = contents.entries[i];
+    const int line = static_cast<int>(i) + 2;  // after the header
+    if (!entry.exposure_ms || !(*entry.exposure_ms > 0.0))
+      throw InputError(journal, line, "exposure_ms: a power sweep needs every frame's reported exposure");
+    if (!entry.illuminator_power_w || !(*entry.illuminator_power_w >= 0.0))
+      throw InputError(journal, line, "illuminator_power_w: a power sweep needs every frame's lamp power");
+    if (entry.gain && !(*entry.gain > 0.0)) throw InputError(journal, line, "gain: must be positive");
+    if (runs.empty() || *runs.back().front()->illuminator_power_w != *entry.illuminator_power_w) runs.emplace_back();
+    runs.back().push_back(&entry);
+  }
+  std::vector<PowerSweepImage> images;
+  std::map<double, int> powers;
+  for (const auto& run : runs) {
+    const double power = *run.front()->illuminator_power_w;
+    if (power == 0.0 || run.size() <= kSettleFrames) continue;
+    const std::size_t settled = run.size() - kSettleFrames;
+    const std::size_t taken = std::min(settled, kFramesPerPower);
+    for (std::size_t k = 0; k < taken; ++k) {
+      const JournalEntry& entry = *run[kSettleFrames + (k * settled) / taken];
+      images.push_back({folder / entry.file, power * *entry.exposure_ms * entry.gain.value_or(1.0)});
+    }
+    ++powers[power];
+  }
+  if (powers.size() < 2)
+    throw InputError(journal, "a power sweep needs frames at 2 or more lamp powers above 0 W, each held for more than " +
+                                  std::to_string(kSettleFrames) + " frames; this session has " +
+                                  std::to_string(powers.size()));
+  return images;
+}
+
 // The green channel of a colour file (a pixel whose red or blue channel clips has a grey value
 // no response explains); grey files are used as they are.
 cv::Mat read_green_or_grey(const fs::path& file) {
@@ -100,7 +144,10 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
     // gain plays the part of the exposure time and resolves the gamma as known times do.
     if (!options.times.empty()) throw InputError(options.times, "--times and --power-sweep exclude each other");
     times.emplace();
-    for (const PowerSweepImage& image : read_power_sweep(options.folder, options.viewpoint)) {
+    const std::vector<PowerSweepImage> sweep = is_session_folder(options.folder)
+                                                   ? read_power_sweep_session(options.folder)
+                                                   : read_power_sweep(options.folder, options.viewpoint);
+    for (const PowerSweepImage& image : sweep) {
       files.push_back(image.file);
       times->push_back(image.relative_exposure);
     }
@@ -202,7 +249,8 @@ void add_calibrate_sweep_command(CLI::App& parent, CommandAction& action) {
       "exposures): the 4-coefficient response of the photometric model, the exposure ratios, the residual.\n"
       "With --times the recorded exposure times resolve the gamma/scale ambiguity; without, the exposures are\n"
       "estimated too (reference image = 1) and the ratios are not reliable. With --power-sweep, a static\n"
-      "illuminator power sweep instead (radiance proportional to power). Writes DSO's pcalib.txt and\n"
+      "illuminator power sweep instead (radiance proportional to power): a simulated sweep's folder, or a recorded\n"
+      "session in which the rig stood still while the lamp was stepped through its powers. Writes DSO's pcalib.txt and\n"
       "sweep_calibration.json with --out.");
   cmd->add_option("sweep_dir", options->folder, "Folder of the sweep's images")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--times", options->times,
@@ -211,7 +259,8 @@ void add_calibrate_sweep_command(CLI::App& parent, CommandAction& action) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", options->out_dir, "Folder for pcalib.txt and sweep_calibration.json");
   cmd->add_flag("--power-sweep", options->power_sweep,
-                "sweep_dir is an illuminator power sweep (sweep.csv + images/, as `nirslam simulate --sweep` writes): "
+                "sweep_dir is an illuminator power sweep (sweep.csv + images/, as `nirslam simulate --sweep` writes, or a "
+                "recorded session whose frames report their exposure and lamp power): "
                 "power x exposure x gain are the known exposures (the lamp must be the only light)");
   cmd->add_option("--viewpoint", options->viewpoint, "Power sweep: which viewpoint's images to use")->capture_default_str();
   cmd->add_flag("--green", options->green, "Use the green channel of colour images instead of the grey conversion");

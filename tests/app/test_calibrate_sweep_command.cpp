@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -12,7 +14,9 @@
 
 #include "app/cli_runner.hpp"
 #include "nirslam/image/image_codec.hpp"
+#include "nirslam/image/frame.hpp"
 #include "nirslam/photometric/response_model.hpp"
+#include "nirslam/session/session_recorder.hpp"
 
 namespace nirslam::testing {
 namespace {
@@ -101,6 +105,69 @@ TEST(CalibrateSweepCommand, PowerSweepRecoversTheSimulatedResponse) {
   const nlohmann::json summary = nlohmann::json::parse(in);
   EXPECT_TRUE(summary.at("power_sweep").get<bool>());
   EXPECT_EQ(summary.at("images").size(), 12u);
+}
+
+// The same sweep as a rig records it: a session (the worker's recorder, as the Record tab runs it)
+// in which the camera stands still while the lamp is stepped through its powers, five frames at
+// each, starting with the lamp off. calibrate-sweep reads the journal's exposures and powers.
+TEST(CalibrateSweepCommand, ARecordedSessionServesAsAPowerSweep) {
+  const auto dir = fresh_dir("calibrate_power_sweep_session");
+  const CommandResult sim = run_command(nirslam(
+      "simulate --out '" + (dir / "sweep").string() +
+      "' --scene room --width 160 --height 120 --response log --exposure 4 --ambient 0 "
+      "--texture distance-independent --sweep 0,5,10,20,40,65,100,150"));
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  std::ifstream table(dir / "sweep" / "sweep.csv");
+  std::string line;
+  std::getline(table, line);  // header: file,viewpoint,frame_index,timestamp_s,power_w,exposure_ms,gain,mean_grey
+  std::vector<std::pair<std::string, double>> images;
+  while (std::getline(table, line)) {
+    std::vector<std::string> cells;
+    std::stringstream row(line);
+    for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
+    ASSERT_GE(cells.size(), 6u) << line;
+    images.emplace_back(cells[0], std::stod(cells[4]));
+  }
+  ASSERT_EQ(images.size(), 8u);
+  const auto record = [&](const std::filesystem::path& session, bool with_power) {
+    SessionRecorder recorder(session, {"simulated", "power sweep", 30.0, nullptr});
+    std::int64_t index = 0;
+    for (const auto& [file, power] : images)
+      for (int repeat = 0; repeat < 5; ++repeat, ++index) {
+        Frame frame;
+        frame.image = read_image(dir / "sweep" / file);
+        frame.index = index;
+        frame.timestamp_s = index / 30.0;
+        frame.exposure_ms = 4.0;
+        frame.gain = 1.0;
+        if (with_power) frame.illuminator_power_w = power;
+        ASSERT_TRUE(recorder.record(frame));
+      }
+    recorder.stop("end of sweep");
+  };
+  record(dir / "session", true);
+  const CommandResult r = run_command(nirslam("calibrate-sweep '" + (dir / "session").string() + "' --power-sweep --out '" +
+                                              (dir / "out").string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("monotonic yes"), std::string::npos) << r.output;
+  const std::vector<double> G = read_pcalib(dir / "out" / "pcalib.txt");
+  const std::vector<double> truth = ResponseModel::from_preset(ResponsePreset::Log).inverse_table(256);
+  ASSERT_EQ(G.size(), 256u);
+  double mean = 0.0;
+  for (std::size_t i = 0; i < 256; ++i) mean += std::abs(G[i] - truth[i]) / 256.0;
+  std::printf("power sweep from a recorded session: response error mean %.2f grey levels\n", mean);
+  EXPECT_LT(mean, 2.0);
+  std::ifstream in(dir / "out" / "sweep_calibration.json");
+  const nlohmann::json summary = nlohmann::json::parse(in);
+  // Seven powers above 0 W, the first two frames of each skipped, three left of five.
+  EXPECT_EQ(summary.at("images").size(), 21u);
+  // Without the lamp's power in the journal it is no power sweep, and the error says where.
+  record(dir / "session_without_power", false);
+  const CommandResult bad = run_command(nirslam("calibrate-sweep '" + (dir / "session_without_power").string() +
+                                                "' --power-sweep"));
+  EXPECT_EQ(bad.exit_code, 1) << bad.output;
+  EXPECT_NE(bad.output.find("journal.csv:2"), std::string::npos) << bad.output;
+  EXPECT_NE(bad.output.find("illuminator_power_w"), std::string::npos) << bad.output;
 }
 
 TEST(CalibrateSweepCommand, PowerSweepWithoutSweepCsvNamesTheFile) {

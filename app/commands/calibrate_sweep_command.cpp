@@ -170,8 +170,19 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
   }
 
   std::vector<cv::Mat> images;
-  for (const fs::path& file : files)
-    images.push_back(options.green ? read_green_or_grey(file) : read_grey_image(file).image);
+  int wide_images = 0;
+  for (const fs::path& file : files) {
+    cv::Mat image = options.green ? read_green_or_grey(file) : read_grey_image(file).image;
+    if (image.depth() == CV_16U) {
+      // The response model's grey scale is 0..255 whatever the bit depth (a 16-bit value g sits
+      // at g / 257, as the pipeline and pcalib.txt take it); NIR cameras record Y10-Y16.
+      cv::Mat scaled;
+      image.convertTo(scaled, CV_8U, 1.0 / 257.0);
+      image = scaled;
+      ++wide_images;
+    }
+    images.push_back(image);
+  }
 
   ExposureSweepOptions sweep_options;
   sweep_options.max_valid_grey = options.max_valid_grey;
@@ -183,6 +194,7 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
   std::printf("Response calibration from %s: %zu images in %s\n",
               options.power_sweep ? "an illuminator power sweep" : "an exposure sweep", files.size(),
               options.folder.string().c_str());
+  if (wide_images > 0) std::printf("  %d 16-bit images read on the 0..255 scale (grey / 257)\n", wide_images);
   std::printf("  ambiguity resolution: %s\n", resolution.c_str());
   if (!times)
     std::printf("  warning: without exposure times the gamma is pinned only by the response basis; the ratios\n"

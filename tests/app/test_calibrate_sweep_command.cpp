@@ -129,13 +129,15 @@ TEST(CalibrateSweepCommand, ARecordedSessionServesAsAPowerSweep) {
     images.emplace_back(cells[0], std::stod(cells[4]));
   }
   ASSERT_EQ(images.size(), 8u);
-  const auto record = [&](const std::filesystem::path& session, bool with_power) {
+  const auto record = [&](const std::filesystem::path& session, bool with_power, int bit_depth = 8) {
     SessionRecorder recorder(session, {"simulated", "power sweep", 30.0, nullptr});
     std::int64_t index = 0;
     for (const auto& [file, power] : images)
       for (int repeat = 0; repeat < 5; ++repeat, ++index) {
         Frame frame;
         frame.image = read_image(dir / "sweep" / file);
+        if (bit_depth == 16) frame.image.convertTo(frame.image, CV_16U, 257.0);  // a Y16 camera's frames
+        frame.bit_depth = bit_depth;
         frame.index = index;
         frame.timestamp_s = index / 30.0;
         frame.exposure_ms = 4.0;
@@ -161,6 +163,15 @@ TEST(CalibrateSweepCommand, ARecordedSessionServesAsAPowerSweep) {
   const nlohmann::json summary = nlohmann::json::parse(in);
   // Seven powers above 0 W, the first two frames of each skipped, three left of five.
   EXPECT_EQ(summary.at("images").size(), 21u);
+  // A 16-bit session (a Y16 camera) is read on the same 0..255 scale, so the same response.
+  record(dir / "session16", true, 16);
+  const CommandResult wide = run_command(nirslam("calibrate-sweep '" + (dir / "session16").string() +
+                                                 "' --power-sweep --out '" + (dir / "out16").string() + "'"));
+  ASSERT_EQ(wide.exit_code, 0) << wide.output;
+  EXPECT_NE(wide.output.find("21 16-bit images read on the 0..255 scale"), std::string::npos) << wide.output;
+  const std::vector<double> G16 = read_pcalib(dir / "out16" / "pcalib.txt");
+  ASSERT_EQ(G16.size(), 256u);
+  for (std::size_t i = 0; i < 256; ++i) EXPECT_NEAR(G16[i], G[i], 1e-6) << i;
   // Without the lamp's power in the journal it is no power sweep, and the error says where.
   record(dir / "session_without_power", false);
   const CommandResult bad = run_command(nirslam("calibrate-sweep '" + (dir / "session_without_power").string() +

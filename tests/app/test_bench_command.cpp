@@ -78,10 +78,20 @@ TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
   const fs::path lens_config = fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-lens-vignette-beam-refined.yaml";
   const fs::path rig = out / "sequences" / "Room_50_40f_320x240";
   ASSERT_TRUE(fs::exists(rig / "vignette.png"));
-  const CommandResult lamp = run_command(nirslam("--config '" + lens_config.string() +
-                                                 "' bench --scenes room --powers 50 --frames 40 --size 320x240 --modes "
-                                                 "calibrated,illuminated --photometric-calibration '" + rig.string() +
-                                                 "' --given-calibration-modes illuminated --out '" + out.string() + "'"));
+  // `bench` with a config, the rig's folder held by the lamp mode; bench.md's first line says so.
+  const auto bench_over_rig = [&](const fs::path& config, const std::string& modes) {
+    return run_command(nirslam("--config '" + config.string() + "' bench --scenes room --powers 50 --frames 40 --size "
+                               "320x240 --modes " + modes + " --photometric-calibration '" + rig.string() +
+                               "' --given-calibration-modes illuminated --out '" + out.string() + "'"));
+  };
+  const auto expect_header = [&](const std::string& held) {
+    const auto md = lines_of(out / "bench.md");
+    ASSERT_FALSE(md.empty());
+    EXPECT_EQ(md[0].rfind("Photometric calibration given (run --photometric-calibration) in mode illuminated: the " + held, 0),
+              0u)
+        << md[0];
+  };
+  const CommandResult lamp = bench_over_rig(lens_config, "calibrated,illuminated");
   ASSERT_EQ(lamp.exit_code, 0) << lamp.output;
   const auto summary_text = [&](const char* mode) {
     std::string text;
@@ -91,30 +101,14 @@ TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
   EXPECT_NE(summary_text("illuminated").find("\"held\": \"vignette\""), std::string::npos) << summary_text("illuminated");
   EXPECT_NE(summary_text("calibrated").find("\"photometric_calibration\": \"online\""), std::string::npos)
       << summary_text("calibrated");
-  const auto lamp_md = lines_of(out / "bench.md");
-  ASSERT_FALSE(lamp_md.empty());
-  EXPECT_EQ(lamp_md[0].rfind("Photometric calibration given (run --photometric-calibration) in mode illuminated: the "
-                             "vignette.png of " + rig.string() + "; the lens vignette (vignette.png) held, "
-                             "the lamp's beam (exponent 4.82, refined online) in the odometry's lamp factor",
-                             0),
-            0u)
-      << lamp_md[0];
+  expect_header("vignette.png of " + rig.string() + "; the lens vignette (vignette.png) held, "
+                "the lamp's beam (exponent 4.82, refined online) in the odometry's lamp factor");
   // The response from a sweep held by the lamp mode, its halo factor the beam over a flat lens.
-  const fs::path sweep_config = fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-lamp-sweep-response.yaml";
-  const CommandResult swept = run_command(nirslam("--config '" + sweep_config.string() +
-                                                  "' bench --scenes room --powers 50 --frames 40 --size 320x240 --modes "
-                                                  "illuminated --photometric-calibration '" + rig.string() +
-                                                  "' --given-calibration-modes illuminated --out '" + out.string() + "'"));
+  const CommandResult swept = bench_over_rig(fs::path(NIRSLAM_SOURCE_DIR) / "config/bench-lamp-sweep-response.yaml", "illuminated");
   ASSERT_EQ(swept.exit_code, 0) << swept.output;
   EXPECT_NE(summary_text("illuminated").find("\"held\": \"response\""), std::string::npos) << summary_text("illuminated");
-  const auto swept_md = lines_of(out / "bench.md");
-  ASSERT_FALSE(swept_md.empty());
-  EXPECT_EQ(swept_md[0].rfind("Photometric calibration given (run --photometric-calibration) in mode illuminated: the "
-                              "pcalib.txt of " + rig.string() + "; the response (pcalib.txt) held, the halo factor "
-                              "estimated online (in the illuminated mode as the lamp's beam over a flat lens)",
-                              0),
-            0u)
-      << swept_md[0];
+  expect_header("pcalib.txt of " + rig.string() + "; the response (pcalib.txt) held, the halo factor estimated online "
+                "(in the illuminated mode as the lamp's beam over a flat lens)");
 }
 
 TEST(BenchCommand, AGivenCalibrationsModesAndFolderAreChecked) {

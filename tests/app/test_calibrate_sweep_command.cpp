@@ -73,17 +73,23 @@ TEST(CalibrateSweepCommand, BlackImagesFailWithReasonAndMissingTimeNamesFile) {
   EXPECT_NE(missing.output.find("no exposure time for image 'c.png'"), std::string::npos) << missing.output;
 }
 
+// One viewpoint of the room at each of `powers_w` (comma-separated), a fixed 4 ms, no ambient
+// light, the log response, texture independent of the distance.
+void simulate_room_sweep(const std::filesystem::path& out, const std::string& powers_w) {
+  const CommandResult sim = run_command(nirslam("simulate --out '" + out.string() +
+                                                "' --scene room --width 160 --height 120 --response log --exposure 4 "
+                                                "--ambient 0 --texture distance-independent --sweep " + powers_w));
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+}
+
 // Issue 6: the response from an illuminator power sweep. The simulator renders one viewpoint of
 // the room at 12 lamp powers, fixed exposure, no ambient light; calibrate-sweep --power-sweep
 // takes power x exposure as the known exposures, and its pcalib.txt is compared with the true
 // (log) inverse response over the grey levels the sweep covers.
 TEST(CalibrateSweepCommand, PowerSweepRecoversTheSimulatedResponse) {
   const auto dir = fresh_dir("calibrate_power_sweep");
-  const CommandResult sim = run_command(nirslam(
-      "simulate --out '" + (dir / "sweep").string() +
-      "' --scene room --width 160 --height 120 --response log --exposure 4 --ambient 0 "
-      "--texture distance-independent --sweep 5,10,15,20,30,40,50,65,80,100,125,150"));
-  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  simulate_room_sweep(dir / "sweep", "5,10,15,20,30,40,50,65,80,100,125,150");
+  if (HasFatalFailure()) return;
   const CommandResult r = run_command(nirslam("calibrate-sweep '" + (dir / "sweep").string() + "' --power-sweep --out '" +
                                               (dir / "out").string() + "'"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -112,11 +118,8 @@ TEST(CalibrateSweepCommand, PowerSweepRecoversTheSimulatedResponse) {
 // each, starting with the lamp off. calibrate-sweep reads the journal's exposures and powers.
 TEST(CalibrateSweepCommand, ARecordedSessionServesAsAPowerSweep) {
   const auto dir = fresh_dir("calibrate_power_sweep_session");
-  const CommandResult sim = run_command(nirslam(
-      "simulate --out '" + (dir / "sweep").string() +
-      "' --scene room --width 160 --height 120 --response log --exposure 4 --ambient 0 "
-      "--texture distance-independent --sweep 0,5,10,20,40,65,100,150"));
-  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  simulate_room_sweep(dir / "sweep", "0,5,10,20,40,65,100,150");
+  if (HasFatalFailure()) return;
   std::ifstream table(dir / "sweep" / "sweep.csv");
   std::string line;
   std::getline(table, line);  // header: file,viewpoint,frame_index,timestamp_s,power_w,exposure_ms,gain,mean_grey

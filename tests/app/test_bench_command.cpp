@@ -79,17 +79,17 @@ TEST(BenchCommand, TinySuiteWritesTheTableWithAnAtePerMode) {
   const fs::path rig = out / "sequences" / "Room_50_40f_320x240";
   ASSERT_TRUE(fs::exists(rig / "vignette.png"));
   // `bench` with a config, the rig's folder held by the lamp mode; bench.md's first line says so.
-  const auto bench_over_rig = [&](const fs::path& config, const std::string& modes) {
-    return run_command(nirslam("--config '" + config.string() + "' bench --scenes room --powers 50 --frames 40 --size "
+  const auto bench_over_rig = [&](const fs::path& rig_config, const std::string& modes) {
+    return run_command(nirslam("--config '" + rig_config.string() + "' bench --scenes room --powers 50 --frames 40 --size "
                                "320x240 --modes " + modes + " --photometric-calibration '" + rig.string() +
                                "' --given-calibration-modes illuminated --out '" + out.string() + "'"));
   };
   const auto expect_header = [&](const std::string& held) {
-    const auto md = lines_of(out / "bench.md");
-    ASSERT_FALSE(md.empty());
-    EXPECT_EQ(md[0].rfind("Photometric calibration given (run --photometric-calibration) in mode illuminated: the " + held, 0),
+    const auto header = lines_of(out / "bench.md");
+    ASSERT_FALSE(header.empty());
+    EXPECT_EQ(header[0].rfind("Photometric calibration given (run --photometric-calibration) in mode illuminated: the " + held, 0),
               0u)
-        << md[0];
+        << header[0];
   };
   const CommandResult lamp = bench_over_rig(lens_config, "calibrated,illuminated");
   ASSERT_EQ(lamp.exit_code, 0) << lamp.output;

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -35,15 +36,17 @@ struct CalibrateSweepOptions {
   int viewpoint = 0;
 };
 
-// One image of an illuminator power sweep (sweep.csv of `nirslam simulate --sweep`).
+// One image of an illuminator power sweep (sweep.csv of `nirslam simulate --sweep`, or a session).
+// Power x exposure scales the lamp's irradiance; at 0 W the image holds the ambient light alone.
 struct PowerSweepImage {
   fs::path file;
-  double relative_exposure = 0.0;  // power x exposure time x gain: what scales the irradiance
+  double power_w = 0.0;
+  double exposure = 0.0;  // exposure time x gain
 };
 
 // Reads the rows of `viewpoint` from sweep.csv (columns file, viewpoint, frame_index, timestamp_s,
-// power_w, exposure_ms, gain, mean_grey). Rows at 0 W are skipped: without the lamp the image
-// holds only the ambient light, which the proportionality does not cover.
+// power_w, exposure_ms, gain, mean_grey). Rows at 0 W hold only the ambient light, which the
+// proportionality does not cover: they are not fitted, only checked (ambient_share).
 std::vector<PowerSweepImage> read_power_sweep(const fs::path& folder, int viewpoint) {
   const fs::path csv = folder / "sweep.csv";
   std::ifstream in(csv);
@@ -73,10 +76,9 @@ std::vector<PowerSweepImage> read_power_sweep(const fs::path& folder, int viewpo
     if (static_cast<int>(values[0]) != viewpoint) continue;
     if (!(values[1] >= 0.0) || !(values[2] > 0.0) || !(values[3] > 0.0))
       throw InputError(csv, number, "power must not be negative, exposure and gain must be positive");
-    if (values[1] == 0.0) continue;
-    images.push_back({folder / cells[0], values[1] * values[2] * values[3]});
+    images.push_back({folder / cells[0], values[1], values[2] * values[3]});
   }
-  if (images.size() < 2)
+  if (std::count_if(images.begin(), images.end(), [](const PowerSweepImage& image) { return image.power_w > 0.0; }) < 2)
     throw InputError(csv, "fewer than 2 images with the lamp on at viewpoint " + std::to_string(viewpoint));
   return images;
 }
@@ -86,7 +88,7 @@ std::vector<PowerSweepImage> read_power_sweep(const fs::path& folder, int viewpo
 // needs its reported exposure and lamp power. Of each run of frames at one power the first
 // `kSettleFrames` are skipped (the lamp and the auto exposure settle after a change) and at most
 // `kFramesPerPower` of the rest taken, evenly spread: frames at one power add only noise
-// averaging, not another exposure. Frames at 0 W are skipped as in sweep.csv.
+// averaging, not another exposure. Frames at 0 W show the ambient light (see ambient_share).
 std::vector<PowerSweepImage> read_power_sweep_session(const fs::path& folder) {
   constexpr std::size_t kSettleFrames = 2;
   constexpr std::size_t kFramesPerPower = 4;
@@ -108,20 +110,48 @@ std::vector<PowerSweepImage> read_power_sweep_session(const fs::path& folder) {
   std::map<double, int> powers;
   for (const auto& run : runs) {
     const double power = *run.front()->illuminator_power_w;
-    if (power == 0.0 || run.size() <= kSettleFrames) continue;
+    if (run.size() <= kSettleFrames) continue;
     const std::size_t settled = run.size() - kSettleFrames;
     const std::size_t taken = std::min(settled, kFramesPerPower);
     for (std::size_t k = 0; k < taken; ++k) {
       const JournalEntry& entry = *run[kSettleFrames + (k * settled) / taken];
-      images.push_back({folder / entry.file, power * *entry.exposure_ms * entry.gain.value_or(1.0)});
+      images.push_back({folder / entry.file, power, *entry.exposure_ms * entry.gain.value_or(1.0)});
     }
-    ++powers[power];
+    if (power > 0.0) ++powers[power];
   }
   if (powers.size() < 2)
     throw InputError(journal, "a power sweep needs frames at 2 or more lamp powers above 0 W, each held for more than " +
                                   std::to_string(kSettleFrames) + " frames; this session has " +
                                   std::to_string(powers.size()));
   return images;
+}
+
+// How much of the light the sweep's weakest lamp image saw was ambient: per pixel the irradiance
+// of a 0 W image over that of the lowest-power image, each G(I) / exposure under the fitted
+// response, median over the pixels the lamp image shows unclipped and above black. The power
+// sweep's model has no ambient term, so a share of a few percent already bends its response
+// (the simulated street under its sky: 55 grey levels off, README "Illuminator correction").
+struct AmbientShare {
+  double share = 0.0;
+  int pixels = 0;
+};
+std::optional<AmbientShare> ambient_share(const cv::Mat& lamp_off, double lamp_off_exposure, const cv::Mat& weakest,
+                                          double weakest_exposure, const ResponseModel& response, int max_valid_grey) {
+  constexpr int kStep = 4;
+  constexpr int kMinGrey = 10;  // where G is steep near black, the ratio says little
+  if (lamp_off.size() != weakest.size()) return std::nullopt;
+  const std::vector<double> G = response.inverse_table(256);
+  std::vector<double> shares;
+  for (int y = 0; y < weakest.rows; y += kStep)
+    for (int x = 0; x < weakest.cols; x += kStep) {
+      const int grey = weakest.at<std::uint8_t>(y, x);
+      if (grey < kMinGrey || grey > max_valid_grey) continue;
+      const double lamp = G[static_cast<std::size_t>(grey)] / weakest_exposure;
+      shares.push_back(G[lamp_off.at<std::uint8_t>(y, x)] / lamp_off_exposure / lamp);
+    }
+  if (shares.empty()) return std::nullopt;
+  std::nth_element(shares.begin(), shares.begin() + static_cast<std::ptrdiff_t>(shares.size() / 2), shares.end());
+  return AmbientShare{shares[shares.size() / 2], static_cast<int>(shares.size())};
 }
 
 // The green channel of a colour file (a pixel whose red or blue channel clips has a grey value
@@ -139,6 +169,10 @@ cv::Mat read_green_or_grey(const fs::path& file) {
 int run_calibrate_sweep(const CalibrateSweepOptions& options) {
   std::vector<fs::path> files;
   std::optional<std::vector<double>> times;
+  // Power sweep: each fitted image's power and exposure, the weakest's index, one image at 0 W.
+  std::vector<double> sweep_powers, sweep_exposures;
+  std::optional<std::size_t> weakest;
+  std::optional<PowerSweepImage> lamp_off;
   if (options.power_sweep) {
     // Radiance proportional to the lamp's power when it is the only light: power x exposure x
     // gain plays the part of the exposure time and resolves the gamma as known times do.
@@ -148,8 +182,15 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
                                                    ? read_power_sweep_session(options.folder)
                                                    : read_power_sweep(options.folder, options.viewpoint);
     for (const PowerSweepImage& image : sweep) {
+      if (image.power_w == 0.0) {
+        if (!lamp_off) lamp_off = image;
+        continue;
+      }
+      if (!weakest || image.power_w < sweep_powers[*weakest]) weakest = files.size();
       files.push_back(image.file);
-      times->push_back(image.relative_exposure);
+      times->push_back(image.power_w * image.exposure);
+      sweep_powers.push_back(image.power_w);
+      sweep_exposures.push_back(image.exposure);
     }
   } else {
     files = list_image_files(options.folder);
@@ -169,9 +210,8 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
     }
   }
 
-  std::vector<cv::Mat> images;
   int wide_images = 0;
-  for (const fs::path& file : files) {
+  const auto load = [&](const fs::path& file) {
     cv::Mat image = options.green ? read_green_or_grey(file) : read_grey_image(file).image;
     if (image.depth() == CV_16U) {
       // The response model's grey scale is 0..255 whatever the bit depth (a 16-bit value g sits
@@ -181,8 +221,10 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
       image = scaled;
       ++wide_images;
     }
-    images.push_back(image);
-  }
+    return image;
+  };
+  std::vector<cv::Mat> images;
+  for (const fs::path& file : files) images.push_back(load(file));
 
   ExposureSweepOptions sweep_options;
   sweep_options.max_valid_grey = options.max_valid_grey;
@@ -212,6 +254,19 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
               result.point_count, result.observation_count, result.residual_rms_grey, result.iterations,
               result.monotonic ? "yes" : "no");
   std::printf("  c = %.6f %.6f %.6f %.6f\n", c[0], c[1], c[2], c[3]);
+  std::optional<AmbientShare> ambient;
+  if (lamp_off && weakest && result.ok)
+    ambient = ambient_share(load(lamp_off->file), lamp_off->exposure, images[*weakest], sweep_exposures[*weakest],
+                            result.response, options.max_valid_grey);
+  if (ambient) {
+    constexpr double kMaxAmbientShare = 0.02;
+    std::printf("  ambient light (%s at 0 W): %.1f %% of the irradiance at %g W (median of %d pixels)\n",
+                lamp_off->file.filename().string().c_str(), 100.0 * ambient->share, sweep_powers[*weakest],
+                ambient->pixels);
+    if (ambient->share > kMaxAmbientShare)
+      std::printf("  warning: the lamp is not the only light, so the response is biased (the power sweep has no ambient\n"
+                  "           term): sweep with the lamp alone, facing a near wall, other lights off\n");
+  }
   if (!result.ok) {
     spdlog::error("calibration failed: {}", result.reason);
     return 1;
@@ -237,6 +292,7 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
         {"ambiguity_resolution", resolution},
         {"exposure_times_given", times.has_value() && !options.power_sweep},
         {"power_sweep", options.power_sweep},
+        {"ambient_share_at_lowest_power", ambient ? nlohmann::json(ambient->share) : nlohmann::json(nullptr)},
         {"reference_image", files[static_cast<std::size_t>(result.reference_image)].filename().string()},
         {"residual_rms_grey", result.residual_rms_grey},
         {"points", result.point_count},

@@ -73,12 +73,13 @@ TEST(CalibrateSweepCommand, BlackImagesFailWithReasonAndMissingTimeNamesFile) {
   EXPECT_NE(missing.output.find("no exposure time for image 'c.png'"), std::string::npos) << missing.output;
 }
 
-// One viewpoint of the room at each of `powers_w` (comma-separated), a fixed 4 ms, no ambient
-// light, the log response, texture independent of the distance.
-void simulate_room_sweep(const std::filesystem::path& out, const std::string& powers_w) {
-  const CommandResult sim = run_command(nirslam("simulate --out '" + out.string() +
-                                                "' --scene room --width 160 --height 120 --response log --exposure 4 "
-                                                "--ambient 0 --texture distance-independent --sweep " + powers_w));
+// One viewpoint at each of `powers_w` (comma-separated), a fixed 4 ms, the log response, texture
+// independent of the distance; by default the room without ambient light.
+void simulate_sweep(const std::filesystem::path& out, const std::string& powers_w,
+                    const std::string& scene = "room --ambient 0") {
+  const CommandResult sim = run_command(nirslam("simulate --out '" + out.string() + "' --scene " + scene +
+                                                " --width 160 --height 120 --response log --exposure 4 "
+                                                "--texture distance-independent --sweep " + powers_w));
   ASSERT_EQ(sim.exit_code, 0) << sim.output;
 }
 
@@ -88,7 +89,7 @@ void simulate_room_sweep(const std::filesystem::path& out, const std::string& po
 // (log) inverse response over the grey levels the sweep covers.
 TEST(CalibrateSweepCommand, PowerSweepRecoversTheSimulatedResponse) {
   const auto dir = fresh_dir("calibrate_power_sweep");
-  simulate_room_sweep(dir / "sweep", "5,10,15,20,30,40,50,65,80,100,125,150");
+  simulate_sweep(dir / "sweep", "5,10,15,20,30,40,50,65,80,100,125,150");
   if (HasFatalFailure()) return;
   const CommandResult r = run_command(nirslam("calibrate-sweep '" + (dir / "sweep").string() + "' --power-sweep --out '" +
                                               (dir / "out").string() + "'"));
@@ -118,7 +119,7 @@ TEST(CalibrateSweepCommand, PowerSweepRecoversTheSimulatedResponse) {
 // each, starting with the lamp off. calibrate-sweep reads the journal's exposures and powers.
 TEST(CalibrateSweepCommand, ARecordedSessionServesAsAPowerSweep) {
   const auto dir = fresh_dir("calibrate_power_sweep_session");
-  simulate_room_sweep(dir / "sweep", "0,5,10,20,40,65,100,150");
+  simulate_sweep(dir / "sweep", "0,5,10,20,40,65,100,150");
   if (HasFatalFailure()) return;
   std::ifstream table(dir / "sweep" / "sweep.csv");
   std::string line;
@@ -166,6 +167,10 @@ TEST(CalibrateSweepCommand, ARecordedSessionServesAsAPowerSweep) {
   const nlohmann::json summary = nlohmann::json::parse(in);
   // Seven powers above 0 W, the first two frames of each skipped, three left of five.
   EXPECT_EQ(summary.at("images").size(), 21u);
+  // Its 0 W frames (the first two after the start skipped) show no other light: the lamp the only one.
+  EXPECT_NE(r.output.find("ambient light (000002.png at 0 W): 0.0 % of the irradiance at 5 W"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("warning: the lamp is not the only light"), std::string::npos) << r.output;
   // A 16-bit session (a Y16 camera) is read on the same 0..255 scale, so the same response.
   record(dir / "session16", true, 16);
   const CommandResult wide = run_command(nirslam("calibrate-sweep '" + (dir / "session16").string() +
@@ -182,6 +187,23 @@ TEST(CalibrateSweepCommand, ARecordedSessionServesAsAPowerSweep) {
   EXPECT_EQ(bad.exit_code, 1) << bad.output;
   EXPECT_NE(bad.output.find("journal.csv:2"), std::string::npos) << bad.output;
   EXPECT_NE(bad.output.find("illuminator_power_w"), std::string::npos) << bad.output;
+}
+
+// The power sweep has no ambient term: under the street's sky light (measured: 12.5 % of the
+// irradiance at 5 W in the 0 W frame) its response came out 74 grey levels off (the room with
+// its faint 1.3 %: 0.16), so a 0 W image with more than 2 % says so.
+TEST(CalibrateSweepCommand, PowerSweepUnderAmbientLightWarns) {
+  const auto dir = fresh_dir("calibrate_power_sweep_ambient");
+  simulate_sweep(dir / "sweep", "0,5,10,20,40,65,100,150", "outdoor");
+  if (HasFatalFailure()) return;
+  const CommandResult r = run_command(nirslam("calibrate-sweep '" + (dir / "sweep").string() + "' --power-sweep --out '" +
+                                              (dir / "out").string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("warning: the lamp is not the only light"), std::string::npos) << r.output;
+  std::ifstream in(dir / "out" / "sweep_calibration.json");
+  const nlohmann::json summary = nlohmann::json::parse(in);
+  EXPECT_GT(summary.at("ambient_share_at_lowest_power").get<double>(), 0.05);
+  EXPECT_EQ(summary.at("images").size(), 7u) << "the 0 W image is checked, not fitted";
 }
 
 TEST(CalibrateSweepCommand, PowerSweepWithoutSweepCsvNamesTheFile) {

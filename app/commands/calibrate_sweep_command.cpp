@@ -33,6 +33,7 @@ struct CalibrateSweepOptions {
   bool green = false;
   int max_valid_grey = 254;
   bool power_sweep = false;
+  bool no_ambient = false;
   int viewpoint = 0;
 };
 
@@ -45,8 +46,8 @@ struct PowerSweepImage {
 };
 
 // Reads the rows of `viewpoint` from sweep.csv (columns file, viewpoint, frame_index, timestamp_s,
-// power_w, exposure_ms, gain, mean_grey). Rows at 0 W hold only the ambient light, which the
-// proportionality does not cover: they are not fitted, only checked (ambient_share).
+// power_w, exposure_ms, gain, mean_grey). Rows at 0 W hold only the ambient light: the ambient
+// term fits them, and ambient_share checks them.
 std::vector<PowerSweepImage> read_power_sweep(const fs::path& folder, int viewpoint) {
   const fs::path csv = folder / "sweep.csv";
   std::ifstream in(csv);
@@ -128,9 +129,9 @@ std::vector<PowerSweepImage> read_power_sweep_session(const fs::path& folder) {
 
 // How much of the light the sweep's weakest lamp image saw was ambient: per pixel the irradiance
 // of a 0 W image over that of the lowest-power image, each G(I) / exposure under the fitted
-// response, median over the pixels the lamp image shows unclipped and above black. The power
-// sweep's model has no ambient term, so a share of a few percent already bends its response
-// (the simulated street under its sky: 55 grey levels off, README "Illuminator correction").
+// response, median over the pixels the lamp image shows unclipped and above black. Without the
+// ambient term (--no-ambient) a share of a few percent already bends the response (the simulated
+// street under its sky: 55 grey levels off, README "Illuminator correction"), so it warns then.
 struct AmbientShare {
   double share = 0.0;
   int pixels = 0;
@@ -169,28 +170,19 @@ cv::Mat read_green_or_grey(const fs::path& file) {
 int run_calibrate_sweep(const CalibrateSweepOptions& options) {
   std::vector<fs::path> files;
   std::optional<std::vector<double>> times;
-  // Power sweep: each fitted image's power and exposure, the weakest's index, one image at 0 W.
-  std::vector<double> sweep_powers, sweep_exposures;
-  std::optional<std::size_t> weakest;
-  std::optional<PowerSweepImage> lamp_off;
+  // Power sweep: each image's power and exposure, the weakest lit image, the first lamp-off one.
+  std::vector<PowerSweepFrame> sweep_frames;
+  std::optional<std::size_t> weakest, lamp_off;
   if (options.power_sweep) {
-    // Radiance proportional to the lamp's power when it is the only light: power x exposure x
-    // gain plays the part of the exposure time and resolves the gamma as known times do.
     if (!options.times.empty()) throw InputError(options.times, "--times and --power-sweep exclude each other");
-    times.emplace();
     const std::vector<PowerSweepImage> sweep = is_session_folder(options.folder)
                                                    ? read_power_sweep_session(options.folder)
                                                    : read_power_sweep(options.folder, options.viewpoint);
     for (const PowerSweepImage& image : sweep) {
-      if (image.power_w == 0.0) {
-        if (!lamp_off) lamp_off = image;
-        continue;
-      }
-      if (!weakest || image.power_w < sweep_powers[*weakest]) weakest = files.size();
+      if (image.power_w == 0.0 && !lamp_off) lamp_off = files.size();
+      if (image.power_w > 0.0 && (!weakest || image.power_w < sweep_frames[*weakest].power_w)) weakest = files.size();
       files.push_back(image.file);
-      times->push_back(image.power_w * image.exposure);
-      sweep_powers.push_back(image.power_w);
-      sweep_exposures.push_back(image.exposure);
+      sweep_frames.push_back({image.power_w, image.exposure});
     }
   } else {
     files = list_image_files(options.folder);
@@ -228,17 +220,22 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
 
   ExposureSweepOptions sweep_options;
   sweep_options.max_valid_grey = options.max_valid_grey;
-  const ExposureSweepResult result = calibrate_exposure_sweep(images, times, sweep_options);
+  const ExposureSweepResult result = options.power_sweep
+                                         ? calibrate_power_sweep(images, sweep_frames, !options.no_ambient, sweep_options)
+                                         : calibrate_exposure_sweep(images, times, sweep_options);
 
-  const std::string resolution = options.power_sweep ? "illuminator power sweep (radiance proportional to the lamp's power x "
-                                                     "exposure x gain; ambient light assumed negligible)"
-                                                   : to_string(result.resolution);
+  const std::string resolution =
+      !options.power_sweep ? to_string(result.resolution)
+      : options.no_ambient ? "illuminator power sweep (radiance proportional to the lamp's power x exposure x gain; "
+                             "ambient light assumed negligible)"
+                           : "illuminator power sweep (radiance proportional to the lamp's power x exposure x gain, "
+                             "plus per point an ambient radiance proportional to exposure x gain)";
   std::printf("Response calibration from %s: %zu images in %s\n",
               options.power_sweep ? "an illuminator power sweep" : "an exposure sweep", files.size(),
               options.folder.string().c_str());
   if (wide_images > 0) std::printf("  %d 16-bit images read on the 0..255 scale (grey / 257)\n", wide_images);
   std::printf("  ambiguity resolution: %s\n", resolution.c_str());
-  if (!times)
+  if (!times && !options.power_sweep)
     std::printf("  warning: without exposure times the gamma is pinned only by the response basis; the ratios\n"
                 "           below are self-consistent but not reliable as exposure ratios (pass --times)\n");
   std::printf("  %-24s %6s %10s %12s %9s %8s  %s\n", "image", "used", "unclipped", "exposure", "ratio", "rms[gl]",
@@ -256,17 +253,21 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
   std::printf("  c = %.6f %.6f %.6f %.6f\n", c[0], c[1], c[2], c[3]);
   std::optional<AmbientShare> ambient;
   if (lamp_off && weakest && result.ok)
-    ambient = ambient_share(load(lamp_off->file), lamp_off->exposure, images[*weakest], sweep_exposures[*weakest],
-                            result.response, options.max_valid_grey);
+    ambient = ambient_share(images[*lamp_off], sweep_frames[*lamp_off].exposure, images[*weakest],
+                            sweep_frames[*weakest].exposure, result.response, options.max_valid_grey);
   if (ambient) {
     constexpr double kMaxAmbientShare = 0.02;
     std::printf("  ambient light (%s at 0 W): %.1f %% of the irradiance at %g W (median of %d pixels)\n",
-                lamp_off->file.filename().string().c_str(), 100.0 * ambient->share, sweep_powers[*weakest],
+                files[*lamp_off].filename().string().c_str(), 100.0 * ambient->share, sweep_frames[*weakest].power_w,
                 ambient->pixels);
-    if (ambient->share > kMaxAmbientShare)
-      std::printf("  warning: the lamp is not the only light, so the response is biased (the power sweep has no ambient\n"
-                  "           term): sweep with the lamp alone, facing a near wall, other lights off\n");
+    if (options.no_ambient && ambient->share > kMaxAmbientShare)
+      std::printf("  warning: the lamp is not the only light, so the response is biased (--no-ambient drops the\n"
+                  "           ambient term): sweep without --no-ambient, or with the lamp alone and other lights off\n");
   }
+  if (result.ambient_modelled && result.ok && result.weakest_image >= 0)
+    std::printf("  ambient term: median %.1f %% of the lamp's irradiance at %g W over the points\n",
+                100.0 * result.ambient_share_at_weakest,
+                sweep_frames[static_cast<std::size_t>(result.weakest_image)].power_w);
   if (!result.ok) {
     spdlog::error("calibration failed: {}", result.reason);
     return 1;
@@ -293,6 +294,9 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
         {"exposure_times_given", times.has_value() && !options.power_sweep},
         {"power_sweep", options.power_sweep},
         {"ambient_share_at_lowest_power", ambient ? nlohmann::json(ambient->share) : nlohmann::json(nullptr)},
+        {"ambient_modelled", result.ambient_modelled},
+        {"ambient_share_fitted",
+         result.ambient_modelled ? nlohmann::json(result.ambient_share_at_weakest) : nlohmann::json(nullptr)},
         {"reference_image", files[static_cast<std::size_t>(result.reference_image)].filename().string()},
         {"residual_rms_grey", result.residual_rms_grey},
         {"points", result.point_count},
@@ -317,9 +321,9 @@ void add_calibrate_sweep_command(CLI::App& parent, CommandAction& action) {
       "exposures): the 4-coefficient response of the photometric model, the exposure ratios, the residual.\n"
       "With --times the recorded exposure times resolve the gamma/scale ambiguity; without, the exposures are\n"
       "estimated too (reference image = 1) and the ratios are not reliable. With --power-sweep, a static\n"
-      "illuminator power sweep instead (radiance proportional to power): a simulated sweep's folder, or a recorded\n"
-      "session in which the rig stood still while the lamp was stepped through its powers. Writes DSO's pcalib.txt and\n"
-      "sweep_calibration.json with --out.");
+      "illuminator power sweep instead (the lamp's radiance proportional to power, plus per point an ambient radiance\n"
+      "that follows the exposure only): a simulated sweep's folder, or a recorded session in which the rig stood still\n"
+      "while the lamp was stepped through its powers. Writes DSO's pcalib.txt and sweep_calibration.json with --out.");
   cmd->add_option("sweep_dir", options->folder, "Folder of the sweep's images")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--times", options->times,
                   "Exposure times, lines 'NAME: SECONDS' (NAME = image file name without extension; SECONDS a number "
@@ -329,7 +333,10 @@ void add_calibrate_sweep_command(CLI::App& parent, CommandAction& action) {
   cmd->add_flag("--power-sweep", options->power_sweep,
                 "sweep_dir is an illuminator power sweep (sweep.csv + images/, as `nirslam simulate --sweep` writes, or a "
                 "recorded session whose frames report their exposure and lamp power): "
-                "power x exposure x gain are the known exposures (the lamp must be the only light)");
+                "power x exposure x gain are the lamp's known exposures; light from elsewhere is fitted per point (see "
+                "--no-ambient)");
+  cmd->add_flag("--no-ambient", options->no_ambient,
+                "Power sweep: no ambient term (the lamp the only light; lamp-off images are then only checked)");
   cmd->add_option("--viewpoint", options->viewpoint, "Power sweep: which viewpoint's images to use")->capture_default_str();
   cmd->add_flag("--green", options->green, "Use the green channel of colour images instead of the grey conversion");
   cmd->add_option("--max-valid", options->max_valid_grey, "Largest grey value counted as unclipped (default 254)")

@@ -8,6 +8,7 @@
 #include <string_view>
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/common/error.hpp"
@@ -24,6 +25,8 @@ std::string to_string(SweepAmbiguityResolution resolution) {
       return "reference image normalisation (e_ref = 1; gamma pinned only by the response basis and the prior)";
     case SweepAmbiguityResolution::FixedPriorResponse:
       return "fixed prior response (exposures estimated with e_ref = 1 and f held at the prior)";
+    case SweepAmbiguityResolution::IlluminatorPowerSweep:
+      return "illuminator power sweep (the lamp's irradiance proportional to power x exposure x gain)";
   }
   return "unknown";
 }
@@ -61,30 +64,59 @@ double sweep_prediction(const Eigen::Vector4d& c, double log_irradiance, Eigen::
   return f;
 }
 
-ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
-                                             const std::optional<std::vector<double>>& exposure_times,
-                                             const ExposureSweepOptions& options) {
+namespace {
+
+// What the fit knows of each image's exposure. `lamp`: the known exposures (times, or power x
+// time for a power sweep), nothing to estimate them. `ambient`: each image's exposure time x gain
+// when the scene also holds light that does not scale with the lamp (then `lamp` is known and may
+// be 0 for a lamp-off image).
+struct SweepExposures {
+  const std::optional<std::vector<double>>& lamp;
+  const std::optional<std::vector<double>>& ambient;
+};
+
+constexpr double kMaxAmbient = 1e4;  // b_i in units of the lamp's irradiance at the reference image
+
+ExposureSweepResult fit_sweep(const std::vector<cv::Mat>& images, const SweepExposures& given,
+                              const ExposureSweepOptions& options) {
   ExposureSweepResult result;
   const int n = static_cast<int>(images.size());
-  const bool known = exposure_times.has_value();
+  const bool known = given.lamp.has_value();
+  const bool ambient = given.ambient.has_value();
   result.resolution = known                   ? SweepAmbiguityResolution::KnownExposureTimes
                       : options.fix_response ? SweepAmbiguityResolution::FixedPriorResponse
                                              : SweepAmbiguityResolution::ReferenceImageNormalisation;
+  result.ambient_modelled = ambient;
   result.images.resize(static_cast<std::size_t>(n));
   result.response = options.prior;
+  const auto lamp_exposure = [&](int j) { return (*given.lamp)[static_cast<std::size_t>(j)]; };
+  const auto ambient_exposure = [&](int j) { return (*given.ambient)[static_cast<std::size_t>(j)]; };
 
   // ---- input checks
   if (known) {
-    if (static_cast<int>(exposure_times->size()) != n)
+    if (static_cast<int>(given.lamp->size()) != n)
       return degenerate(result, options,
-                        "got " + std::to_string(exposure_times->size()) + " exposure times for " + std::to_string(n) +
+                        "got " + std::to_string(given.lamp->size()) + " exposure times for " + std::to_string(n) +
+                            " images");
+    if (ambient && static_cast<int>(given.ambient->size()) != n)
+      return degenerate(result, options,
+                        "got " + std::to_string(given.ambient->size()) + " ambient exposures for " + std::to_string(n) +
                             " images");
     for (int j = 0; j < n; ++j) {
-      const double t = (*exposure_times)[static_cast<std::size_t>(j)];
-      if (!std::isfinite(t) || t <= 0.0)
+      const double t = lamp_exposure(j);
+      if (ambient) {
+        // A lamp-off image (0) sees the ambient light alone: it observes the ambient term directly.
+        if (!std::isfinite(t) || t < 0.0)
+          return degenerate(result, options, "lamp exposure of image " + std::to_string(j) + " is negative");
+        if (!std::isfinite(ambient_exposure(j)) || ambient_exposure(j) <= 0.0)
+          return degenerate(result, options, "exposure time of image " + std::to_string(j) + " is not positive");
+      } else if (!std::isfinite(t) || t <= 0.0) {
         return degenerate(result, options, "exposure time of image " + std::to_string(j) + " is not positive");
+      }
       result.images[static_cast<std::size_t>(j)].exposure = t;
     }
+  } else if (ambient) {
+    return degenerate(result, options, "the ambient term needs the known exposures");
   }
   if (n < 2) return degenerate(result, options, "fewer than 2 images (" + std::to_string(n) + ")");
   for (int j = 0; j < n; ++j) {
@@ -121,8 +153,10 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
     return lo[sj].at<unsigned char>(row, col) >= options.min_valid_grey &&
            hi[sj].at<unsigned char>(row, col) <= options.max_valid_grey;
   };
+  // With the ambient term a point has two unknowns (lamp and ambient radiance).
+  const int min_observations = ambient ? 3 : 2;
 
-  // ---- candidate positions: a grid with ~4x the wanted points, unclipped in >= 2 images,
+  // ---- candidate positions: a grid with ~4x the wanted points, unclipped in enough images,
   // the lowest gradient score (max over images) kept.
   const int wanted = std::max(1, options.max_points);
   const double stride_f = std::sqrt(static_cast<double>(width - 4) * (height - 4) / (4.0 * wanted));
@@ -135,8 +169,8 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
   for (int row = 2; row < height - 2; row += stride)
     for (int col = 2; col < width - 2; col += stride) {
       int count = 0;
-      for (int j = 0; j < n && count < 2; ++j) count += unclipped(j, row, col) ? 1 : 0;
-      if (count >= 2) candidates.push_back({row, col, score.at<float>(row, col)});
+      for (int j = 0; j < n && count < min_observations; ++j) count += unclipped(j, row, col) ? 1 : 0;
+      if (count >= min_observations) candidates.push_back({row, col, score.at<float>(row, col)});
     }
   if (static_cast<int>(candidates.size()) > wanted) {
     std::nth_element(candidates.begin(), candidates.begin() + wanted, candidates.end(),
@@ -160,23 +194,26 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
       used_images.push_back(j);
     }
   }
-  if (used_images.size() < 2)
+  const auto lamp_on = [&](int j) { return !known || lamp_exposure(j) > 0.0; };
+  const auto lit = std::count_if(used_images.begin(), used_images.end(), lamp_on);
+  if (lit < 2)
     return degenerate(result, options,
-                      "fewer than 2 usable images (" + std::to_string(used_images.size()) +
-                          "): the others are black or saturated");
-  const int reference = used_images.front();
+                      "fewer than 2 usable images (" + std::to_string(lit) + "): the others are black or saturated" +
+                          (ambient ? " or lamp-off" : ""));
+  const int reference = *std::find_if(used_images.begin(), used_images.end(), lamp_on);
   result.reference_image = reference;
 
   if (known) {
     double t_min = 1e300, t_max = 0.0;
     for (int j : used_images) {
-      t_min = std::min(t_min, (*exposure_times)[static_cast<std::size_t>(j)]);
-      t_max = std::max(t_max, (*exposure_times)[static_cast<std::size_t>(j)]);
+      if (!lamp_on(j)) continue;
+      t_min = std::min(t_min, lamp_exposure(j));
+      t_max = std::max(t_max, lamp_exposure(j));
     }
     if (t_max / t_min < 1.02) return degenerate(result, options, "no exposure variation among the usable images");
   }
 
-  // ---- observations, grouped by point (only points seen unclipped in >= 2 used images)
+  // ---- observations, grouped by point (only points seen unclipped in enough used images)
   std::vector<Observation> observations;
   std::vector<int> point_begin{0};
   observations.reserve(static_cast<std::size_t>(sampled) * used_images.size());
@@ -185,7 +222,7 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
     for (int j : used_images)
       if (unclipped(j, cand.row, cand.col))
         observations.push_back({j, mean[static_cast<std::size_t>(j)].at<float>(cand.row, cand.col) / 255.0});
-    if (observations.size() - before < 2)
+    if (static_cast<int>(observations.size() - before) < min_observations)
       observations.resize(before);
     else
       point_begin.push_back(static_cast<int>(observations.size()));
@@ -196,51 +233,109 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
   result.observation_count = nobs;
   if (points < options.min_points)
     return degenerate(result, options,
-                      "too few unclipped tracks: " + std::to_string(points) + " points seen in >= 2 images, need " +
-                          std::to_string(options.min_points));
+                      "too few unclipped tracks: " + std::to_string(points) + " points seen in >= " +
+                          std::to_string(min_observations) + " images, need " + std::to_string(options.min_points));
+  const auto first = [&](int i) { return point_begin[static_cast<std::size_t>(i)]; };
+  const auto last = [&](int i) { return point_begin[static_cast<std::size_t>(i) + 1]; };
+  const auto observation = [&](int k) -> const Observation& { return observations[static_cast<std::size_t>(k)]; };
 
-  // ---- parameters
+  // ---- parameters: c; per image log e_j (estimated or known) or, with the ambient term, the
+  // lamp's and the ambient's exposure relative to the reference image, q_j and s_j; per point
+  // the log radiance l_i and (ambient term) b_i, the ambient radiance in units of the lamp's at
+  // the reference image: X_ij = exp(l_i) (q_j + b_i s_j). b_i may go below 0 as long as every
+  // observed X_ij stays positive: estimated per point with noise, a b_i held at >= 0 comes out
+  // positive on average where there is no ambient light, and the response bends to match
+  // (measured: 0.03 -> 0.10 grey levels in the room, 0.17 -> 3.5 in the tunnel).
   Eigen::Vector4d c = options.prior.coefficients();
   const Eigen::Vector4d c_prior = c;
   std::vector<double> log_exposure(static_cast<std::size_t>(n), 0.0);
+  std::vector<double> lamp_scale(static_cast<std::size_t>(n), 0.0), ambient_scale(static_cast<std::size_t>(n), 0.0);
   std::vector<int> exposure_index(static_cast<std::size_t>(n), -1);  // position in the global block
   int globals = 4;
   if (known) {
-    const double t_ref = (*exposure_times)[static_cast<std::size_t>(reference)];
-    for (int j = 0; j < n; ++j) log_exposure[static_cast<std::size_t>(j)] = std::log((*exposure_times)[static_cast<std::size_t>(j)] / t_ref);
+    const double t_ref = lamp_exposure(reference);
+    for (int j = 0; j < n; ++j) {
+      lamp_scale[static_cast<std::size_t>(j)] = lamp_exposure(j) / t_ref;
+      log_exposure[static_cast<std::size_t>(j)] = lamp_on(j) ? std::log(lamp_exposure(j) / t_ref) : 0.0;
+      if (ambient) ambient_scale[static_cast<std::size_t>(j)] = ambient_exposure(j) / ambient_exposure(reference);
+    }
   } else {
     for (int j : used_images)
       if (j != reference) exposure_index[static_cast<std::size_t>(j)] = globals++;
   }
+  // log X_ij and d log X_ij / d b_i.
+  const auto log_irradiance = [&](int j, double l, double b, const std::vector<double>& s, double* d_b) {
+    const auto sj = static_cast<std::size_t>(j);
+    if (!ambient) {
+      if (d_b != nullptr) *d_b = 0.0;
+      return l + s[sj];
+    }
+    return power_sweep_log_irradiance(l, b, lamp_scale[sj], ambient_scale[sj], d_b);
+  };
 
   // Initialisation (Debevec-like, log domain, prior response): log X_ij = l_i + s_j by
-  // alternating means.
+  // alternating means; with the ambient term per point X_ij = L_i q_j + A_i s_j by linear least
+  // squares on the lamp-lit and lamp-off observations.
   std::vector<double> log_x(static_cast<std::size_t>(nobs));
   for (int k = 0; k < nobs; ++k) {
-    const double y = std::clamp(observations[static_cast<std::size_t>(k)].grey, 0.5 / 255.0, 1.0 - 0.5 / 255.0);
+    const double y = std::clamp(observation(k).grey, 0.5 / 255.0, 1.0 - 0.5 / 255.0);
     log_x[static_cast<std::size_t>(k)] = std::log(std::max(options.prior.inverse(y), 1e-6));
   }
   std::vector<double> log_radiance(static_cast<std::size_t>(points), 0.0);
+  std::vector<double> ambient_radiance(static_cast<std::size_t>(points), 0.0);
+  // Per point the smallest b_i keeping each of its observations' irradiance positive.
+  std::vector<double> min_ambient(static_cast<std::size_t>(points), -kMaxAmbient);
   std::vector<double> sum(static_cast<std::size_t>(n)), count(static_cast<std::size_t>(n));
-  for (int pass = 0; pass < (known ? 1 : 30); ++pass) {
+  if (ambient) {
     for (int i = 0; i < points; ++i) {
-      double acc = 0.0;
-      for (int k = point_begin[static_cast<std::size_t>(i)]; k < point_begin[static_cast<std::size_t>(i) + 1]; ++k)
-        acc += log_x[static_cast<std::size_t>(k)] - log_exposure[static_cast<std::size_t>(observations[static_cast<std::size_t>(k)].image)];
-      log_radiance[static_cast<std::size_t>(i)] = acc / (point_begin[static_cast<std::size_t>(i) + 1] - point_begin[static_cast<std::size_t>(i)]);
-    }
-    if (known) break;
-    std::fill(sum.begin(), sum.end(), 0.0);
-    std::fill(count.begin(), count.end(), 0.0);
-    for (int i = 0; i < points; ++i)
-      for (int k = point_begin[static_cast<std::size_t>(i)]; k < point_begin[static_cast<std::size_t>(i) + 1]; ++k) {
-        const auto j = static_cast<std::size_t>(observations[static_cast<std::size_t>(k)].image);
-        sum[j] += log_x[static_cast<std::size_t>(k)] - log_radiance[static_cast<std::size_t>(i)];
-        count[j] += 1.0;
+      Eigen::Matrix2d normal = Eigen::Matrix2d::Zero();
+      Eigen::Vector2d right = Eigen::Vector2d::Zero();
+      double lamp_only = 0.0, lamp_weight = 0.0;
+      for (int k = first(i); k < last(i); ++k) {
+        const auto j = static_cast<std::size_t>(observation(k).image);
+        const Eigen::Vector2d a(lamp_scale[j], ambient_scale[j]);
+        const double x = std::exp(log_x[static_cast<std::size_t>(k)]);
+        normal.noalias() += a * a.transpose();
+        right.noalias() += a * x;
+        lamp_only += lamp_scale[j] * x;
+        lamp_weight += lamp_scale[j] * lamp_scale[j];
       }
-    for (int j : used_images)
-      if (j != reference && count[static_cast<std::size_t>(j)] > 0.0)
-        log_exposure[static_cast<std::size_t>(j)] = sum[static_cast<std::size_t>(j)] / count[static_cast<std::size_t>(j)];
+      double lowest = kMaxAmbient;  // min over the observations of q_j / s_j
+      for (int k = first(i); k < last(i); ++k) {
+        const auto j = static_cast<std::size_t>(observation(k).image);
+        lowest = std::min(lowest, lamp_scale[j] / ambient_scale[j]);
+      }
+      const auto si = static_cast<std::size_t>(i);
+      // A point seen with the lamp off (q_j = 0) shows its ambient light, so it has some.
+      min_ambient[si] = lowest > 0.0 ? -0.99 * lowest : 1e-6;
+      Eigen::Vector2d la = normal.ldlt().solve(right);
+      if (!la.allFinite() || la[0] <= 0.0) la = Eigen::Vector2d(lamp_only / std::max(lamp_weight, 1e-12), 0.0);
+      la[0] = std::max(la[0], 1e-6);
+      log_radiance[si] = std::log(la[0]);
+      // Started at >= 0: under the prior response a negative share is the response's error.
+      ambient_radiance[si] = std::clamp(la[1] / la[0], std::max(0.0, min_ambient[si]), kMaxAmbient);
+    }
+  } else {
+    for (int pass = 0; pass < (known ? 1 : 30); ++pass) {
+      for (int i = 0; i < points; ++i) {
+        double acc = 0.0;
+        for (int k = first(i); k < last(i); ++k)
+          acc += log_x[static_cast<std::size_t>(k)] - log_exposure[static_cast<std::size_t>(observation(k).image)];
+        log_radiance[static_cast<std::size_t>(i)] = acc / (last(i) - first(i));
+      }
+      if (known) break;
+      std::fill(sum.begin(), sum.end(), 0.0);
+      std::fill(count.begin(), count.end(), 0.0);
+      for (int i = 0; i < points; ++i)
+        for (int k = first(i); k < last(i); ++k) {
+          const auto j = static_cast<std::size_t>(observation(k).image);
+          sum[j] += log_x[static_cast<std::size_t>(k)] - log_radiance[static_cast<std::size_t>(i)];
+          count[j] += 1.0;
+        }
+      for (int j : used_images)
+        if (j != reference && count[static_cast<std::size_t>(j)] > 0.0)
+          log_exposure[static_cast<std::size_t>(j)] = sum[static_cast<std::size_t>(j)] / count[static_cast<std::size_t>(j)];
+    }
   }
   if (!known) {
     double s_min = 0.0, s_max = 0.0;
@@ -252,18 +347,21 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
       return degenerate(result, options, "no exposure variation: the usable images are equally bright");
   }
 
-  // ---- Levenberg-Marquardt, Schur complement over the log radiances
+  // ---- Levenberg-Marquardt, Schur complement over the per-point blocks (l_i, beta_i); without
+  // the ambient term beta_i is inert (unit diagonal, no gradient).
   const double delta = options.huber_grey / 255.0;
   const double prior_weight = options.coefficient_prior_weight * nobs;
   const double monotonic_weight = 100.0 * nobs;
 
-  const auto total_cost = [&](const Eigen::Vector4d& cc, const std::vector<double>& s, const std::vector<double>& l) {
+  const auto total_cost = [&](const Eigen::Vector4d& cc, const std::vector<double>& s, const std::vector<double>& l,
+                              const std::vector<double>& beta) {
     double cost = 0.0;
     for (int i = 0; i < points; ++i)
-      for (int k = point_begin[static_cast<std::size_t>(i)]; k < point_begin[static_cast<std::size_t>(i) + 1]; ++k) {
-        const Observation& o = observations[static_cast<std::size_t>(k)];
-        const double r = sweep_prediction(cc, l[static_cast<std::size_t>(i)] + s[static_cast<std::size_t>(o.image)]) - o.grey;
-        cost += twice_huber_loss(r, delta);
+      for (int k = first(i); k < last(i); ++k) {
+        const Observation& o = observation(k);
+        const double log_x_ij =
+            log_irradiance(o.image, l[static_cast<std::size_t>(i)], beta[static_cast<std::size_t>(i)], s, nullptr);
+        cost += twice_huber_loss(sweep_prediction(cc, log_x_ij) - o.grey, delta);
       }
     cost += prior_weight * (cc - c_prior).squaredNorm();
     Eigen::Vector4d h, dh;
@@ -275,38 +373,51 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
     return cost;
   };
 
-  Eigen::MatrixXd H_gg(globals, globals), S(globals, globals), H_gl(globals, points);
+  Eigen::MatrixXd H_gg(globals, globals), S(globals, globals), H_gp(globals, 2 * points);
   Eigen::VectorXd b_g(globals), rhs(globals), J_g(globals), dg(globals);
-  std::vector<double> H_ll(static_cast<std::size_t>(points)), b_l(static_cast<std::size_t>(points));
-  std::vector<double> trial_s(log_exposure), trial_l(log_radiance);
+  std::vector<Eigen::Matrix2d> H_pp(static_cast<std::size_t>(points));
+  std::vector<Eigen::Vector2d> b_p(static_cast<std::size_t>(points));
+  std::vector<double> trial_s(log_exposure), trial_l(log_radiance), trial_b(ambient_radiance);
   Eigen::Matrix<double, 5, 1> jac;
-  double cost = total_cost(c, log_exposure, log_radiance);
+  double cost = total_cost(c, log_exposure, log_radiance, ambient_radiance);
   double lambda = 1e-4;
   int iteration = 0;
+  // The damped point block and its inverse, as the Schur complement and the back substitution use it.
+  const auto damped_inverse = [&](int i) {
+    Eigen::Matrix2d block = H_pp[static_cast<std::size_t>(i)];
+    block.diagonal() *= 1.0 + lambda;
+    block.diagonal().array() += 1e-12;
+    return Eigen::Matrix2d(block.inverse());
+  };
   for (; iteration < options.max_iterations; ++iteration) {
     // Linearise.
     H_gg.setZero();
     b_g.setZero();
-    H_gl.setZero();
+    H_gp.setZero();
     for (int i = 0; i < points; ++i) {
-      double hll = 0.0, bl = 0.0;
-      for (int k = point_begin[static_cast<std::size_t>(i)]; k < point_begin[static_cast<std::size_t>(i) + 1]; ++k) {
-        const Observation& o = observations[static_cast<std::size_t>(k)];
-        const double r =
-            sweep_prediction(c, log_radiance[static_cast<std::size_t>(i)] + log_exposure[static_cast<std::size_t>(o.image)], &jac) - o.grey;
+      Eigen::Matrix2d hpp = Eigen::Matrix2d::Zero();
+      Eigen::Vector2d bp = Eigen::Vector2d::Zero();
+      for (int k = first(i); k < last(i); ++k) {
+        const Observation& o = observation(k);
+        double d_beta = 0.0;
+        const double log_x_ij = log_irradiance(o.image, log_radiance[static_cast<std::size_t>(i)],
+                                               ambient_radiance[static_cast<std::size_t>(i)], log_exposure, &d_beta);
+        const double r = sweep_prediction(c, log_x_ij, &jac) - o.grey;
         const double w = huber_weight(r, delta);
         J_g.setZero();
         J_g.head<4>() = jac.head<4>();
         const int e = exposure_index[static_cast<std::size_t>(o.image)];
         if (e >= 0) J_g[e] = jac[4];
+        const Eigen::Vector2d J_p(jac[4], jac[4] * d_beta);
         H_gg.noalias() += w * J_g * J_g.transpose();
         b_g.noalias() += w * r * J_g;
-        H_gl.col(i).noalias() += w * jac[4] * J_g;
-        hll += w * jac[4] * jac[4];
-        bl += w * jac[4] * r;
+        H_gp.middleCols<2>(2 * i).noalias() += w * J_g * J_p.transpose();
+        hpp.noalias() += w * J_p * J_p.transpose();
+        bp.noalias() += w * r * J_p;
       }
-      H_ll[static_cast<std::size_t>(i)] = hll;
-      b_l[static_cast<std::size_t>(i)] = bl;
+      if (!ambient) hpp(1, 1) = 1.0;
+      H_pp[static_cast<std::size_t>(i)] = hpp;
+      b_p[static_cast<std::size_t>(i)] = bp;
     }
     H_gg.topLeftCorner<4, 4>().diagonal().array() += prior_weight;
     b_g.head<4>() += prior_weight * (c - c_prior);
@@ -327,7 +438,7 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
       H_gg.leftCols<4>().setZero();
       H_gg.topLeftCorner<4, 4>().setIdentity();
       b_g.head<4>().setZero();
-      H_gl.topRows<4>().setZero();
+      H_gp.topRows<4>().setZero();
     }
 
     // Try steps with growing damping until one lowers the cost.
@@ -339,9 +450,10 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
       S.diagonal().array() += 1e-12;
       rhs = -b_g;
       for (int i = 0; i < points; ++i) {
-        const double hll = H_ll[static_cast<std::size_t>(i)] * (1.0 + lambda) + 1e-12;
-        S.noalias() -= H_gl.col(i) * H_gl.col(i).transpose() / hll;
-        rhs.noalias() += H_gl.col(i) * (b_l[static_cast<std::size_t>(i)] / hll);
+        const Eigen::Matrix2d inverse = damped_inverse(i);
+        const auto H_gi = H_gp.middleCols<2>(2 * i);
+        S.noalias() -= H_gi * inverse * H_gi.transpose();
+        rhs.noalias() += H_gi * (inverse * b_p[static_cast<std::size_t>(i)]);
       }
       dg = S.ldlt().solve(rhs);
       if (!dg.allFinite()) {
@@ -355,16 +467,18 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
         if (e >= 0) trial_s[static_cast<std::size_t>(j)] += dg[e];
       }
       for (int i = 0; i < points; ++i) {
-        const double hll = H_ll[static_cast<std::size_t>(i)] * (1.0 + lambda) + 1e-12;
-        const double dl = -(b_l[static_cast<std::size_t>(i)] + H_gl.col(i).dot(dg)) / hll;
-        trial_l[static_cast<std::size_t>(i)] = log_radiance[static_cast<std::size_t>(i)] + std::clamp(dl, -2.0, 2.0);
+        const auto si = static_cast<std::size_t>(i);
+        const Eigen::Vector2d dp = -damped_inverse(i) * (b_p[si] + H_gp.middleCols<2>(2 * i).transpose() * dg);
+        trial_l[si] = log_radiance[si] + std::clamp(dp[0], -2.0, 2.0);
+        trial_b[si] = ambient ? std::clamp(ambient_radiance[si] + dp[1], min_ambient[si], kMaxAmbient) : ambient_radiance[si];
       }
-      new_cost = total_cost(trial_c, trial_s, trial_l);
+      new_cost = total_cost(trial_c, trial_s, trial_l, trial_b);
       if (std::isfinite(new_cost) && new_cost < cost) {
         accepted = true;
         c = trial_c;
         log_exposure.swap(trial_s);
         log_radiance.swap(trial_l);
+        ambient_radiance.swap(trial_b);
         lambda = std::max(lambda / 3.0, 1e-9);
       } else {
         lambda *= 4.0;
@@ -382,9 +496,11 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
   std::fill(sum.begin(), sum.end(), 0.0);
   std::fill(count.begin(), count.end(), 0.0);
   for (int i = 0; i < points; ++i)
-    for (int k = point_begin[static_cast<std::size_t>(i)]; k < point_begin[static_cast<std::size_t>(i) + 1]; ++k) {
-      const Observation& o = observations[static_cast<std::size_t>(k)];
-      const double r = sweep_prediction(c, log_radiance[static_cast<std::size_t>(i)] + log_exposure[static_cast<std::size_t>(o.image)]) - o.grey;
+    for (int k = first(i); k < last(i); ++k) {
+      const Observation& o = observation(k);
+      const double log_x_ij = log_irradiance(o.image, log_radiance[static_cast<std::size_t>(i)],
+                                             ambient_radiance[static_cast<std::size_t>(i)], log_exposure, nullptr);
+      const double r = sweep_prediction(c, log_x_ij) - o.grey;
       squared += r * r;
       sum[static_cast<std::size_t>(o.image)] += r * r;
       count[static_cast<std::size_t>(o.image)] += 1.0;
@@ -409,7 +525,7 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
   }
   result.ok = true;
   result.response = estimate;
-  const double e_ref = known ? (*exposure_times)[static_cast<std::size_t>(reference)] : 1.0;
+  const double e_ref = known ? lamp_exposure(reference) : 1.0;
   for (int j = 0; j < n; ++j) {
     auto& info = result.images[static_cast<std::size_t>(j)];
     if (known) {
@@ -419,7 +535,75 @@ ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
       info.ratio = info.exposure;
     }
   }
+  if (ambient) {
+    // Ambient over lamp irradiance at the weakest lit image w: b_i s_w / q_w, median over points.
+    int weakest = reference;
+    for (int j : used_images)
+      if (lamp_on(j) && lamp_scale[static_cast<std::size_t>(j)] < lamp_scale[static_cast<std::size_t>(weakest)]) weakest = j;
+    const auto w = static_cast<std::size_t>(weakest);
+    std::vector<double> shares;
+    shares.reserve(static_cast<std::size_t>(points));
+    for (double b : ambient_radiance) shares.push_back(b * ambient_scale[w] / lamp_scale[w]);
+    std::nth_element(shares.begin(), shares.begin() + static_cast<std::ptrdiff_t>(shares.size() / 2), shares.end());
+    result.ambient_share_at_weakest = shares[shares.size() / 2];
+    result.weakest_image = weakest;
+  }
   return result;
+}
+
+}  // namespace
+
+ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
+                                             const std::optional<std::vector<double>>& exposure_times,
+                                             const ExposureSweepOptions& options) {
+  const std::optional<std::vector<double>> no_ambient;
+  return fit_sweep(images, {exposure_times, no_ambient}, options);
+}
+
+ExposureSweepResult calibrate_power_sweep(const std::vector<cv::Mat>& images, const std::vector<PowerSweepFrame>& frames,
+                                          bool model_ambient, const ExposureSweepOptions& options) {
+  ExposureSweepResult result;
+  result.images.resize(images.size());
+  if (frames.size() != images.size())
+    return degenerate(result, options,
+                      "got " + std::to_string(frames.size()) + " powers and exposures for " +
+                          std::to_string(images.size()) + " images");
+  for (std::size_t j = 0; j < frames.size(); ++j)
+    if (!std::isfinite(frames[j].power_w) || frames[j].power_w < 0.0 || !std::isfinite(frames[j].exposure) ||
+        frames[j].exposure <= 0.0)
+      return degenerate(result, options,
+                        "image " + std::to_string(j) + ": the power is negative or the exposure not positive");
+  std::optional<std::vector<double>> lamp(std::in_place), ambient;
+  if (model_ambient) ambient.emplace();
+  std::vector<cv::Mat> fitted;
+  std::vector<int> fitted_index;
+  for (std::size_t j = 0; j < images.size(); ++j) {
+    // Without the ambient term a lamp-off image fits nothing the model has.
+    if (!model_ambient && frames[j].power_w == 0.0) continue;
+    fitted.push_back(images[j]);
+    fitted_index.push_back(static_cast<int>(j));
+    lamp->push_back(frames[j].power_w * frames[j].exposure);
+    if (ambient) ambient->push_back(frames[j].exposure);
+  }
+  result = fit_sweep(fitted, {lamp, ambient}, options);
+  // Back to the caller's image indices; a lamp-off image left out says why.
+  std::vector<ExposureSweepImage> all(images.size());
+  for (std::size_t j = 0; j < images.size(); ++j)
+    if (frames[j].power_w == 0.0 && !model_ambient) all[j].note = "0 W: ambient light only, outside the model";
+  for (std::size_t k = 0; k < fitted_index.size() && k < result.images.size(); ++k)
+    all[static_cast<std::size_t>(fitted_index[k])] = result.images[k];
+  result.images = std::move(all);
+  if (result.reference_image >= 0) result.reference_image = fitted_index[static_cast<std::size_t>(result.reference_image)];
+  if (result.weakest_image >= 0) result.weakest_image = fitted_index[static_cast<std::size_t>(result.weakest_image)];
+  result.resolution = SweepAmbiguityResolution::IlluminatorPowerSweep;
+  return result;
+}
+
+double power_sweep_log_irradiance(double log_radiance, double ambient, double lamp_scale, double ambient_scale,
+                                  double* d_ambient) {
+  const double z = lamp_scale + ambient * ambient_scale;
+  if (d_ambient != nullptr) *d_ambient = ambient_scale / z;
+  return log_radiance + std::log(z);
 }
 
 std::vector<NamedExposureTime> read_exposure_times(const std::filesystem::path& file) {

@@ -277,6 +277,126 @@ TEST(ExposureSweep, DegenerateInputKeepsPriorAndSaysWhy) {
   expect_degenerate(calibrate_exposure_sweep({colour, colour}, std::nullopt, options), "8-bit grey");
 }
 
+// A static scene of 8x8-pixel patches under the rig's lamp at `powers` (relative to the strongest)
+// and, on every other patch, ambient light that does not follow the lamp: X = P R + A with the
+// lamp radiance R log-uniform in [0.03, 1] and A / R log-uniform in [0.02, 1]. The noise as in
+// render_sweep.
+std::vector<cv::Mat> render_power_sweep(const ResponseModel& response, const std::vector<double>& powers,
+                                        double noise_grey, unsigned seed) {
+  constexpr int kWidth = 256, kHeight = 192, kPatch = 8;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> log_r(std::log(0.03), std::log(1.0));
+  std::uniform_real_distribution<double> log_share(std::log(0.02), std::log(1.0));
+  std::normal_distribution<double> noise(0.0, noise_grey);
+  cv::Mat lamp(kHeight / kPatch, kWidth / kPatch, CV_64FC1), ambient(lamp.size(), CV_64FC1);
+  for (int r = 0; r < lamp.rows; ++r)
+    for (int c = 0; c < lamp.cols; ++c) {
+      lamp.at<double>(r, c) = std::exp(log_r(rng));
+      ambient.at<double>(r, c) = (r + c) % 2 == 0 ? lamp.at<double>(r, c) * std::exp(log_share(rng)) : 0.0;
+    }
+  std::vector<cv::Mat> images;
+  for (double power : powers) {
+    cv::Mat image(kHeight, kWidth, CV_8UC1);
+    for (int r = 0; r < kHeight; ++r)
+      for (int c = 0; c < kWidth; ++c) {
+        const double X = power * lamp.at<double>(r / kPatch, c / kPatch) + ambient.at<double>(r / kPatch, c / kPatch);
+        const double grey = 255.0 * response(X) + noise(rng);
+        image.at<unsigned char>(r, c) = static_cast<unsigned char>(std::clamp(std::lround(grey), 0L, 255L));
+      }
+    images.push_back(image);
+  }
+  return images;
+}
+
+// The worst grey-level error of `estimate` against `truth` over X in [lowest, 1] at the best
+// common irradiance scale k (the data fix f only up to X -> kX without saturated samples).
+double worst_error_at_best_scale(const ResponseModel& estimate, const ResponseModel& truth, double lowest) {
+  double worst = 1e9;
+  for (double k = 0.5; k <= 2.0; k *= 1.002) {
+    double err = 0.0;
+    for (double X = lowest; X <= 1.0 / k && X <= 1.0; X *= 1.05)
+      err = std::max(err, 255.0 * std::abs(estimate(k * X) - truth(X)));
+    worst = std::min(worst, err);
+  }
+  return worst;
+}
+
+TEST(PowerSweep, LogIrradianceDerivativeByTheAmbientShareIsNumeric) {
+  for (const double q : {0.0, 0.5, 3.0})
+    for (const double b : {0.01, 0.4, 2.0}) {
+      double d_ambient = 0.0;
+      const double value = power_sweep_log_irradiance(-1.2, b, q, 1.7, &d_ambient);
+      EXPECT_NEAR(value, -1.2 + std::log(q + 1.7 * b), 1e-12);
+      const double h = 1e-6;
+      const double numeric =
+          (power_sweep_log_irradiance(-1.2, b + h, q, 1.7) - power_sweep_log_irradiance(-1.2, b - h, q, 1.7)) / (2 * h);
+      EXPECT_NEAR(d_ambient, numeric, 1e-6 * std::max(1.0, std::abs(numeric))) << q << " " << b;
+    }
+}
+
+// Issue 6's power-sweep route to the response, outdoors or beside other lights: with the ambient
+// term the response is as good as with the lamp alone; without it the ambient light bends it.
+TEST(PowerSweep, AmbientTermRecoversTheResponseUnderAmbientLight) {
+  const std::vector<double> powers_w = {0.0, 5.0, 10.0, 20.0, 40.0, 65.0, 100.0, 150.0};
+  std::vector<double> relative;
+  std::vector<PowerSweepFrame> frames;
+  for (double p : powers_w) {
+    relative.push_back(p / 150.0);
+    frames.push_back({p, 4.0});
+  }
+  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
+  const auto images = render_power_sweep(truth, relative, 0.7, 17);
+  const ExposureSweepResult with = calibrate_power_sweep(images, frames, true);
+  ASSERT_TRUE(with.ok) << with.reason;
+  EXPECT_EQ(with.resolution, SweepAmbiguityResolution::IlluminatorPowerSweep);
+  EXPECT_TRUE(with.ambient_modelled);
+  EXPECT_TRUE(with.images[0].used) << "the lamp-off image shows the ambient light";
+  EXPECT_EQ(with.reference_image, 1);
+  EXPECT_EQ(with.weakest_image, 1);
+  const ExposureSweepResult without = calibrate_power_sweep(images, frames, false);
+  ASSERT_TRUE(without.ok) << without.reason;
+  EXPECT_FALSE(without.ambient_modelled);
+  EXPECT_FALSE(without.images[0].used);
+  EXPECT_NE(without.images[0].note.find("0 W"), std::string::npos);
+  const double lowest = 0.03 * 5.0 / 150.0;
+  const double error_with = worst_error_at_best_scale(with.response, truth, lowest);
+  const double error_without = worst_error_at_best_scale(without.response, truth, lowest);
+  std::printf("power sweep under ambient light: worst %.2f grey levels with the ambient term (residual %.2f, ambient "
+              "share %.2f at 5 W), %.2f without (residual %.2f)\n",
+              error_with, with.residual_rms_grey, with.ambient_share_at_weakest, error_without,
+              without.residual_rms_grey);
+  EXPECT_LT(error_with, 1.5);
+  EXPECT_LT(with.residual_rms_grey, 1.0);
+  EXPECT_GT(error_without, 3.0 * error_with);
+  // Half the patches have no ambient light: the median share at 5 W lies between theirs (0)
+  // and the lit ones' (A / R in [0.02, 1], at 5 W x 30 that).
+  EXPECT_GT(with.ambient_share_at_weakest, 0.0);
+  EXPECT_LT(with.ambient_share_at_weakest, 30.0);
+  // Without ambient light the term finds none and costs the response nothing.
+  const auto lamp_only = render_sweep(truth, {relative.begin() + 1, relative.end()}, 0.7, 19);
+  const std::vector<PowerSweepFrame> lit_frames(frames.begin() + 1, frames.end());
+  const ExposureSweepResult alone = calibrate_power_sweep(lamp_only, lit_frames, true);
+  ASSERT_TRUE(alone.ok) << alone.reason;
+  const double error_alone = worst_error_at_best_scale(alone.response, truth, 0.02 * 5.0 / 150.0);
+  std::printf("power sweep, lamp the only light: worst %.2f grey levels, ambient share %.4f\n", error_alone,
+              alone.ambient_share_at_weakest);
+  EXPECT_LT(error_alone, 1.5);
+  EXPECT_LT(std::abs(alone.ambient_share_at_weakest), 0.05);
+}
+
+TEST(PowerSweep, BadPowersOrExposuresKeepThePriorAndSayWhy) {
+  const auto images = render_sweep(ResponseModel::from_preset(ResponsePreset::Gamma), {1.0, 0.5, 0.25}, 0.7, 23);
+  const auto short_list = calibrate_power_sweep(images, {{10.0, 4.0}, {5.0, 4.0}}, true);
+  EXPECT_FALSE(short_list.ok);
+  EXPECT_NE(short_list.reason.find("2 powers and exposures for 3 images"), std::string::npos) << short_list.reason;
+  const auto negative = calibrate_power_sweep(images, {{10.0, 4.0}, {-5.0, 4.0}, {2.5, 4.0}}, true);
+  EXPECT_FALSE(negative.ok);
+  EXPECT_NE(negative.reason.find("image 1"), std::string::npos) << negative.reason;
+  const auto all_off = calibrate_power_sweep(images, {{0.0, 4.0}, {0.0, 4.0}, {0.0, 2.0}}, true);
+  EXPECT_FALSE(all_off.ok);
+  EXPECT_NE(all_off.reason.find("lamp-off"), std::string::npos) << all_off.reason;
+}
+
 TEST(ExposureTimes, ReadsNamesAndFractionsAndNamesTheBadLine) {
   const fs::path dir = fs::temp_directory_path() / ("nirslam_sweep_times_" + std::to_string(std::random_device{}()));
   fs::create_directories(dir);

@@ -68,6 +68,7 @@ enum class SweepAmbiguityResolution {
   KnownExposureTimes,            // exposures fixed from the given times
   ReferenceImageNormalisation,   // e_ref = 1, gamma pinned only by the basis (weak, see above)
   FixedPriorResponse,            // e_ref = 1, f held at options.prior (fix_response)
+  IlluminatorPowerSweep,         // power x exposure known (calibrate_power_sweep)
 };
 std::string to_string(SweepAmbiguityResolution resolution);
 
@@ -93,6 +94,11 @@ struct ExposureSweepResult {
   int observation_count = 0;
   int iterations = 0;
   bool monotonic = true;
+  // Power sweep with the ambient term: the median over the points of the ambient irradiance
+  // over the lamp's at the weakest lit image (weakest_image).
+  bool ambient_modelled = false;
+  double ambient_share_at_weakest = 0.0;
+  int weakest_image = -1;
 };
 
 // `images`: 8-bit single-channel images of one size. `exposure_times`: one positive time per image
@@ -100,6 +106,32 @@ struct ExposureSweepResult {
 ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
                                              const std::optional<std::vector<double>>& exposure_times,
                                              const ExposureSweepOptions& options = {});
+
+// An illuminator power sweep: the rig stands still and the lamp steps through its powers. The
+// lamp's irradiance is proportional to its power; light it does not give (sky, street lights,
+// the tunnel's lamps) adds a radiance A_i per point that scales with the exposure only:
+//
+//   I_ij / 255 = f(t_j (P_j R_i + A_i)) = f(L_i (q_j + b_i s_j)),
+//   q_j = t_j P_j / (t_ref P_ref),  s_j = t_j / t_ref,  b_i = A_i / (P_ref R_i) >= 0
+//
+// (t_j exposure time x gain, ref the first usable lit image). Without the ambient term
+// (model_ambient false) b_i = 0 and a lamp-off image is left out; that is the known-exposure fit
+// with t_j P_j as the times, exact when the lamp is the only light and biased otherwise (the
+// simulated street under its sky: 55-74 grey levels). With it each point carries log b_i too
+// (a 2x2 block in the Schur complement), lamp-off images observe A_i directly, and the response
+// is still pinned: with f(0) = 0 only a common scale of L and A keeps the images' grey values,
+// the same irradiance scale as without ambient light. A point then needs 3 unclipped images.
+struct PowerSweepFrame {
+  double power_w = 0.0;   // 0: lamp off
+  double exposure = 0.0;  // exposure time x gain, any unit
+};
+ExposureSweepResult calibrate_power_sweep(const std::vector<cv::Mat>& images, const std::vector<PowerSweepFrame>& frames,
+                                          bool model_ambient, const ExposureSweepOptions& options = {});
+
+// The power sweep's log irradiance log X_ij = l_i + log(q_j + b_i s_j) (above) and, with a
+// pointer, its derivative by the ambient share b_i.
+double power_sweep_log_irradiance(double log_radiance, double ambient, double lamp_scale, double ambient_scale,
+                                  double* d_ambient = nullptr);
 
 // The model's prediction f(exp(log_irradiance)) for coefficients c, evaluated as a polynomial in
 // u = sqrt(X) (not clamped, so the fit has a gradient past saturation). With a jacobian it also

@@ -143,7 +143,10 @@ void Application::draw_strip(const Snapshot& snapshot) {
   const auto draw_tab = [&](StripTab tab) {
     current_tab_ = tab;
     switch (tab) {
-      case StripTab::Illumination: illumination_.draw(snapshot, post_); break;
+      case StripTab::Illumination:
+        illumination_.set_response_root(recording_.sessions_folder());
+        illumination_.draw(snapshot, post_);
+        break;
       case StripTab::Photometric: photometric_.draw(snapshot); break;
       case StripTab::Session: session_.draw(snapshot, post_, session_actions_); break;
       case StripTab::Record: recording_.draw(snapshot, post_, session_actions_); break;

@@ -62,7 +62,7 @@ SimulatorOptions resolve(SimulateOptions& o) {
   if (!scene) throw std::invalid_argument("--scene: unknown scene '" + o.scene + "' (room, outdoor, parking, tunnel)");
   s.scene = *scene;
   const auto motion = sim::parse_motion_kind(o.motion);
-  if (!motion) throw std::invalid_argument("--motion: unknown motion '" + o.motion + "' (handheld, vehicle, robot)");
+  if (!motion) throw std::invalid_argument("--motion: unknown motion '" + o.motion + "' (handheld, vehicle, robot, tripod)");
   s.motion = *motion;
   if (o.camera == "pinhole") s.camera_model = SimCameraModel::Pinhole;
   else if (o.camera == "fov") s.camera_model = SimCameraModel::Fov;
@@ -155,7 +155,7 @@ void add_simulate_command(CLI::App& parent, CommandAction& action) {
       "to try the pipeline, a lamp power or a camera setting without going into the field");
   cmd->add_option("-o,--out", o->out, "Output folder")->required();
   cmd->add_option("--scene", o->scene, "Scene: room, outdoor, parking or tunnel")->capture_default_str();
-  cmd->add_option("--motion", o->motion, "Camera motion: handheld, vehicle or robot")->capture_default_str();
+  cmd->add_option("--motion", o->motion, "Camera motion: handheld, vehicle, robot or tripod (the rig still)")->capture_default_str();
   cmd->add_option("--seed", o->sim.seed, "Seed: scene details, noise")->capture_default_str();
   cmd->add_option("--frames", o->sim.frames, "Number of frames to render")->capture_default_str()->check(CLI::PositiveNumber);
   cmd->add_option("--fps", o->sim.fps, "Frame rate, Hz")->capture_default_str()->check(CLI::PositiveNumber);

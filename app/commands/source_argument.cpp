@@ -1,9 +1,11 @@
 #include "commands/source_argument.hpp"
 
 #include <filesystem>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "commands/app_config.hpp"
 #include "nirslam/capture/v4l2_source.hpp"
@@ -32,6 +34,19 @@ double parse_power(std::string text, const std::string& argument) {
   return watts;
 }
 
+double parse_exposure(const std::string& text, const std::string& argument) {
+  double ms = 0.0;
+  std::size_t used = 0;
+  try {
+    ms = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || !(ms > 0.0) || ms > 1000.0)
+    throw std::invalid_argument("'" + argument + "': exposure= must be milliseconds in (0, 1000], e.g. sim:room/exposure=4");
+  return ms;
+}
+
 }  // namespace
 
 bool is_built_in_sequence(const std::string& argument) {
@@ -43,8 +58,14 @@ SourceFactory source_factory_from_argument(const std::string& argument) {
   if (argument == "sim" || argument.rfind("sim:", 0) == 0) {
     SimulatorOptions options;
     if (argument != "sim") {
-      // sim:SCENE or sim:SCENE@POWER (the lamp's power at the start, in watts; "W" optional).
-      const std::string spec = argument.substr(4);
+      // sim:SCENE[@POWER][/OPTION...]: the lamp's power at the start in watts ("W" optional); the
+      // options a motion (handheld, vehicle, robot, tripod: the rig still, as a power sweep for
+      // the response wants it) and exposure=MS (auto exposure off, the exposure fixed).
+      std::vector<std::string> parts;
+      std::stringstream fields(argument.substr(4));
+      for (std::string part; std::getline(fields, part, '/');) parts.push_back(part);
+      const std::string spec = parts.empty() ? std::string() : parts.front();
+      const std::vector<std::string> extras(parts.begin() + (parts.empty() ? 0 : 1), parts.end());
       const std::string scene_name = spec.substr(0, spec.find('@'));
       const auto scene = sim::parse_scene_kind(scene_name);
       if (!scene)
@@ -53,6 +74,17 @@ SourceFactory source_factory_from_argument(const std::string& argument) {
       options.scene = *scene;
       if (const auto at = spec.find('@'); at != std::string::npos)
         options.powers_w = {parse_power(spec.substr(at + 1), argument)};
+      for (const std::string& extra : extras) {
+        if (const auto motion = sim::parse_motion_kind(extra)) {
+          options.motion = *motion;
+        } else if (extra.rfind("exposure=", 0) == 0) {
+          options.exposure_mode = ExposureMode::Fixed;
+          options.exposure_ms = parse_exposure(extra.substr(9), argument);
+        } else {
+          throw std::invalid_argument("'" + argument + "': unknown option '" + extra +
+                                      "' after '/' (a motion: handheld, vehicle, robot, tripod; or exposure=MS)");
+        }
+      }
     }
     validate(options);
     return [options] { return make_simulated_source(options); };

@@ -150,6 +150,7 @@ bool SweepRecorder::apply(const SweepCommand& command) {
 }
 
 bool SweepRecorder::add_frame(const FrameMetrics& metrics, std::optional<double> power_w, bool power_from_frame) {
+  last_captured_w_.reset();
   if (progress_.stage != SweepStage::Capturing || !progress_.capturing_w) return false;
   const double target = *progress_.capturing_w;
   // A frame from before the lamp changed (still in the camera's pipeline) does not count.
@@ -165,6 +166,7 @@ bool SweepRecorder::add_frame(const FrameMetrics& metrics, std::optional<double>
   }
   progress_.settle_remaining = 0;
   active().add(target, metrics);
+  last_captured_w_ = target;
   ++progress_.frames_captured;
   if (progress_.frames_captured >= progress_.frames_wanted) {
     message_ = fmt::format("{:g} W done ({} frames)", target, progress_.frames_captured);

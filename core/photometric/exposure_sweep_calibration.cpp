@@ -9,6 +9,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
+#include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/common/error.hpp"
@@ -513,6 +514,43 @@ ExposureSweepResult fit_sweep(const std::vector<cv::Mat>& images, const SweepExp
   bool finite = std::isfinite(rms) && c.allFinite();
   for (double s : log_exposure) finite = finite && std::isfinite(s);
   if (!finite) return degenerate(result, options, "the fit diverged (non-finite values)");
+
+  if (ambient) {
+    // Where the ambient light outshines the lamp the images hardly change and nothing pins f: the
+    // median over the points of how much their irradiance changed over the sweep.
+    // The fit can also flatten f to match images that do not change, so the grey values' own
+    // change over the sweep is checked as well.
+    std::vector<double> spans, grey_spans;
+    spans.reserve(static_cast<std::size_t>(points));
+    grey_spans.reserve(static_cast<std::size_t>(points));
+    for (int i = 0; i < points; ++i) {
+      double lowest = 1e300, highest = -1e300, darkest = 1.0, brightest = 0.0;
+      for (int k = first(i); k < last(i); ++k) {
+        const double log_x_ij = log_irradiance(observation(k).image, log_radiance[static_cast<std::size_t>(i)],
+                                               ambient_radiance[static_cast<std::size_t>(i)], log_exposure, nullptr);
+        lowest = std::min(lowest, log_x_ij);
+        highest = std::max(highest, log_x_ij);
+        darkest = std::min(darkest, observation(k).grey);
+        brightest = std::max(brightest, observation(k).grey);
+      }
+      spans.push_back(highest - lowest);
+      grey_spans.push_back(255.0 * (brightest - darkest));
+    }
+    const auto median = [](std::vector<double>& values) {
+      std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+      return values[values.size() / 2];
+    };
+    constexpr double kMinIrradianceRatio = 1.5;
+    constexpr double kMinGreySpan = 8.0;
+    const double ratio = std::exp(median(spans));
+    const double grey_span = median(grey_spans);
+    if (!(ratio >= kMinIrradianceRatio) || !(grey_span >= kMinGreySpan))
+      return degenerate(result, options,
+                        fmt::format("the lamp changes the points by a median {:.1f} grey levels, their irradiance by a "
+                                    "factor of {:.2f}, over the sweep (need {:.0f} and {:.1f}; other light outshines "
+                                    "it, or the lamp did not change): the response is not determined",
+                                    grey_span, ratio, kMinGreySpan, kMinIrradianceRatio));
+  }
 
   const ResponseModel estimate(c);
   result.monotonic = estimate.is_monotonic();

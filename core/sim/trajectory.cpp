@@ -90,6 +90,7 @@ std::string_view to_string(MotionKind kind) {
     case MotionKind::Handheld: return "handheld";
     case MotionKind::Vehicle: return "vehicle";
     case MotionKind::Robot: return "robot";
+    case MotionKind::Tripod: return "tripod";
   }
   return "unknown";
 }
@@ -99,6 +100,7 @@ std::optional<MotionKind> parse_motion_kind(std::string_view name) {
   if (key == "handheld" || key == "hand-held") return MotionKind::Handheld;
   if (key == "vehicle") return MotionKind::Vehicle;
   if (key == "robot") return MotionKind::Robot;
+  if (key == "tripod" || key == "still") return MotionKind::Tripod;
   return std::nullopt;
 }
 
@@ -144,6 +146,7 @@ Eigen::Vector2d Trajectory::spline(double u) const {
 }
 
 Eigen::Vector3d Trajectory::position(double t) const {
+  if (kind_ == MotionKind::Tripod) t = 0.0;
   const double u = t / period_ * static_cast<double>(control_.size());
   const Eigen::Vector2d p = spline(u);
   double z = height_;
@@ -160,6 +163,7 @@ Eigen::Vector3d Trajectory::position(double t) const {
 }
 
 SE3 Trajectory::pose(double t) const {
+  if (kind_ == MotionKind::Tripod) t = 0.0;
   const double u = t / period_ * static_cast<double>(control_.size());
   const double h = 1e-3;
   const Eigen::Vector2d velocity = spline(u + h) - spline(u - h);
@@ -181,6 +185,9 @@ SE3 Trajectory::pose(double t) const {
     case MotionKind::Robot:
       pitch = deg(2.0) + wave(0.2, 2.9, 4);
       roll = wave(0.2, 3.7, 5);
+      break;
+    case MotionKind::Tripod:
+      pitch = deg(-5.0);  // the handheld's view at its start, held
       break;
   }
   // Camera axes (x right, y down, z forward) for heading 0 along world +x, then roll about the
@@ -225,7 +232,8 @@ Trajectory make_trajectory(SceneKind scene, MotionKind kind, std::uint32_t seed)
       height = {1.45, 0.9, 0.45};
       break;
   }
-  const auto k = static_cast<std::size_t>(kind);
+  // A tripod stands where the handheld path starts, at its height.
+  const auto k = kind == MotionKind::Tripod ? std::size_t{0} : static_cast<std::size_t>(kind);
   return Trajectory(resample_closed(dense, kControlSpacing), floor + height[k], speed[k], kind, seed);
 }
 

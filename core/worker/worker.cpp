@@ -42,6 +42,7 @@ Worker::~Worker() {
   }
   queue_cv_.notify_all();
   thread_.join();
+  if (sweep_fit_.valid()) sweep_fit_.wait();
 }
 
 void Worker::post(Command command) {
@@ -88,7 +89,7 @@ void Worker::run() {
     {
       std::unique_lock lock(queue_mutex_);
       const auto has_work = [&] {
-        return exit_requested_ || !queue_.empty() || incoming_observer_ || incoming_finish_handler_ ||
+        return exit_requested_ || !queue_.empty() || incoming_observer_ || incoming_finish_handler_ || sweep_fit_ready_ ||
                state_ == WorkerState::Running ||
                steps_pending_ > 0;
       };
@@ -110,6 +111,7 @@ void Worker::run() {
       }
     }
     for (Command& command : commands) apply(command);
+    collect_sweep_fit();
 
     if (state_ == WorkerState::Running || steps_pending_ > 0) {
       if (pending_frame_) {
@@ -179,6 +181,7 @@ void Worker::apply(Command& command) {
           recent_completions_.clear();
           pending_frame_.reset();
           steps_pending_ = 0;
+          reset_sweep_response();  // another camera, perhaps
           auto next = std::make_shared<Snapshot>();
           next->sequence = snapshot()->sequence + 1;
           next->illuminator_power_w = power_w_;
@@ -218,10 +221,14 @@ void Worker::apply(Command& command) {
           const auto* capture = std::get_if<sweep_command::Capture>(&c.action);
           // The lamp first: a capture at a power that cannot be set does not start.
           if (capture == nullptr || set_power(capture->power_w, message)) {
-            sweep_.apply(c.action);
+            const bool fresh = std::holds_alternative<sweep_command::Start>(c.action) ||
+                               std::holds_alternative<sweep_command::Clear>(c.action);
+            if (sweep_.apply(c.action) && fresh) reset_sweep_response();
             message = sweep_.status()->message;
+            start_sweep_fit_if_complete();
           }
           auto next = copy_of_latest();
+          next->sweep_response = sweep_response_;
           next->illuminator_power_w = power_w_;
           next->illumination = sweep_.status();
           next->message = std::move(message);
@@ -233,6 +240,8 @@ void Worker::apply(Command& command) {
           publish_recording_status(finish_recording("stopped by the operator"));
         } else if constexpr (std::is_same_v<C, command::Seek>) {
           seek_source(c.position);
+        } else if constexpr (std::is_same_v<C, command::HoldSweepResponse>) {
+          hold_sweep_response(c);
         } else if constexpr (std::is_same_v<C, command::SetPacing>) {
           options_.pacing = c.pacing;
           pacing_origin_.reset();
@@ -358,6 +367,8 @@ void Worker::process_one_frame() {
   // The power of the frame: as the frame reports it (a lamp the source drives), else as the operator set it.
   const bool power_from_frame = frame->illuminator_power_w.has_value();
   sweep_.add_frame(metrics, power_from_frame ? frame->illuminator_power_w : power_w_, power_from_frame);
+  keep_sweep_shot(*frame);
+  start_sweep_fit_if_complete();
 
   QualitySample sample;
   sample.frame_index = frame->index;
@@ -385,6 +396,7 @@ void Worker::process_one_frame() {
   next->feature_grid = std::move(grid);
   next->exposure = check_exposure(quality, sweep_.config().exposure);
   next->illumination = sweep_.status();
+  next->sweep_response = sweep_response_;
   next->quality_history.assign(history_.begin(), history_.end());
   next->timings.read_ms = milliseconds_between(started, read_done);
   next->timings.quality_ms = milliseconds_between(read_done, quality_done);
@@ -537,6 +549,99 @@ void Worker::seek_source(std::size_t position) {
   set_pipeline_views(*next);
   next->corrected_image = cv::Mat();
   next->message = fmt::format("jumped to frame {}; calibration and odometry start again there", position + 1);
+  publish(std::move(next));
+}
+
+void Worker::keep_sweep_shot(const Frame& frame) {
+  const std::optional<double> power = sweep_.last_captured_w();
+  if (!power) return;
+  sweep_shots_.add(*power, frame);
+  sweep_shots_unfitted_ = true;
+}
+
+void Worker::start_sweep_fit_if_complete() {
+  if (!sweep_shots_unfitted_ || sweep_.status()->progress.stage != SweepStage::Complete) return;
+  sweep_shots_unfitted_ = false;
+  if (sweep_fit_.valid()) {  // an earlier sweep's fit, not collected yet: dropped
+    sweep_fit_.wait();
+    sweep_fit_ = {};
+    std::lock_guard lock(queue_mutex_);
+    sweep_fit_ready_ = false;
+  }
+  auto fitting = std::make_shared<SweepResponse>();
+  if (sweep_shots_.shots().empty() && sweep_shots_.missing_exposure() > 0) {
+    fitting->state = SweepResponse::State::Failed;
+    fitting->reason = "the source reports no exposure time with its frames; the response needs power x exposure";
+    sweep_response_ = std::move(fitting);
+    return;
+  }
+  sweep_response_ = std::move(fitting);
+  sweep_fit_generation_ = sweep_generation_;
+  sweep_fit_ = std::async(std::launch::async, [this, shots = sweep_shots_.shots()] {
+    SweepResponse response = fit_sweep_response(shots);
+    {
+      std::lock_guard lock(queue_mutex_);
+      sweep_fit_ready_ = true;
+    }
+    queue_cv_.notify_one();
+    return response;
+  });
+}
+
+void Worker::collect_sweep_fit() {
+  {
+    std::lock_guard lock(queue_mutex_);
+    if (!sweep_fit_ready_) return;
+    sweep_fit_ready_ = false;
+  }
+  if (!sweep_fit_.valid()) return;
+  SweepResponse response = sweep_fit_.get();
+  if (sweep_fit_generation_ != sweep_generation_) return;  // a new sweep started meanwhile
+  const std::string message =
+      response.state == SweepResponse::State::Done
+          ? fmt::format("camera response from the sweep: {} images, residual {:.2f} grey levels{}", response.images,
+                        response.residual_rms_grey, response.warning.empty() ? "" : "; " + response.warning)
+          : "no camera response from the sweep: " + response.reason;
+  sweep_response_ = std::make_shared<const SweepResponse>(std::move(response));
+  auto next = copy_of_latest();
+  next->sweep_response = sweep_response_;
+  next->message = message;
+  publish(std::move(next));
+}
+
+void Worker::reset_sweep_response() {
+  sweep_shots_.clear();
+  sweep_shots_unfitted_ = false;
+  sweep_response_.reset();
+  ++sweep_generation_;
+}
+
+void Worker::hold_sweep_response(const command::HoldSweepResponse& hold) {
+  auto next = copy_of_latest();
+  if (!sweep_response_ || sweep_response_->state != SweepResponse::State::Done) {
+    next->message = "no camera response from a complete power sweep to hold";
+    return publish(std::move(next));
+  }
+  auto held = std::make_shared<SweepResponse>(*sweep_response_);
+  try {
+    write_sweep_response(*held, hold.folder);
+  } catch (const std::exception& e) {
+    next->message = std::string("cannot hold the sweep's response: ") + e.what();
+    spdlog::error("{}", next->message);
+    return publish(std::move(next));
+  }
+  held->folder = hold.folder;
+  held->held = true;
+  options_.pipeline.given_calibration_folder = hold.folder;
+  options_.pipeline.given_calibration_holds = GivenCalibrationParts::Response;
+  restart_pipeline();
+  sweep_response_ = std::move(held);
+  set_pipeline_views(*next);
+  next->corrected_image = cv::Mat();
+  next->sweep_response = sweep_response_;
+  next->message = !pipeline_error_.empty()
+                      ? pipeline_error_
+                      : fmt::format("the pipeline holds the sweep's response ({})", (hold.folder / "pcalib.txt").string());
   publish(std::move(next));
 }
 

@@ -122,17 +122,23 @@ TEST(DefaultCommand, WithoutADisplayRendersHeadlessAndSaysWhere) {
 namespace nirslam::testing {
 namespace {
 
-// sim:SCENE@POWER sets the simulated lamp; a power that is not a number of watts is refused
-// before any window opens, naming the argument.
+// sim:SCENE@POWER sets the simulated lamp, /tripod stands the rig still and /exposure=MS locks the
+// exposure (a power sweep for the response); a power that is not a number of watts, or an unknown
+// option, is refused before any window opens, naming the argument.
 TEST(GuiCommand, SimulatedLampPowerInTheSourceArgument) {
   const fs::path dir = fresh_dir("gui_power");
   const CommandResult ok = run_command(nirslam("gui sim:room@20W --headless --frames 3 --size 800x500 --screenshot '" +
                                                (dir / "room20.png").string() + "'"));
   ASSERT_EQ(ok.exit_code, 0) << ok.output;
+  const CommandResult still = run_command(nirslam("gui sim:room@20W/tripod/exposure=4 --headless --frames 3 --size "
+                                                  "800x500 --screenshot '" + (dir / "still.png").string() + "'"));
+  ASSERT_EQ(still.exit_code, 0) << still.output;
   const std::pair<const char*, const char*> cases[] = {{"sim:room@", "'sim:room@'"},
                                                        {"sim:room@-5W", "must be a number of watts"},
                                                        {"sim:room@lots", "'sim:room@lots'"},
-                                                       {"sim:cave@20W", "unknown simulated scene 'cave'"}};
+                                                       {"sim:cave@20W", "unknown simulated scene 'cave'"},
+                                                       {"sim:room/wobbly", "unknown option 'wobbly'"},
+                                                       {"sim:room/exposure=0", "exposure= must be milliseconds"}};
   for (const auto& [bad, says] : cases) {
     const CommandResult r = run_command(nirslam(std::string("gui ") + bad + " --headless --frames 3"));
     EXPECT_NE(r.exit_code, 0) << bad;

@@ -11,12 +11,29 @@ namespace nirslam::sim {
 namespace {
 
 constexpr SceneKind kEveryScene[] = {SceneKind::Room, SceneKind::Outdoor, SceneKind::Parking, SceneKind::Tunnel};
-constexpr MotionKind kMotions[] = {MotionKind::Handheld, MotionKind::Vehicle, MotionKind::Robot};
+constexpr MotionKind kMotions[] = {MotionKind::Handheld, MotionKind::Vehicle, MotionKind::Robot, MotionKind::Tripod};
 
 TEST(SimTrajectory, NamesRoundTrip) {
   for (const MotionKind m : kMotions) EXPECT_EQ(parse_motion_kind(to_string(m)), m);
   EXPECT_EQ(parse_motion_kind("Hand-held"), MotionKind::Handheld);
   EXPECT_FALSE(parse_motion_kind("drone"));
+  EXPECT_EQ(parse_motion_kind("still"), MotionKind::Tripod);
+}
+
+// A tripod holds the handheld path's first view, clear of the scene, for good (power sweeps).
+TEST(SimTrajectory, TripodStandsStillWhereTheHandheldPathStarts) {
+  for (const SceneKind k : kEveryScene) {
+    const Trajectory tripod = make_trajectory(k, MotionKind::Tripod, 1);
+    const Trajectory handheld = make_trajectory(k, MotionKind::Handheld, 1);
+    const SE3 first = tripod.pose(0.0);
+    for (const double t : {0.5, 7.0, 100.0}) {
+      const SE3 later = tripod.pose(t);
+      EXPECT_LT((later.translation() - first.translation()).norm(), 1e-12) << to_string(k);
+      EXPECT_LT((later.rotation_matrix() - first.rotation_matrix()).norm(), 1e-12) << to_string(k);
+    }
+    // Within the handheld's sway (1.2 cm) of where it starts.
+    EXPECT_LT((first.translation().head<2>() - handheld.position(0.0).head<2>()).norm(), 0.015) << to_string(k);
+  }
 }
 
 TEST(SimTrajectory, EveryPathKeepsClearOfTheSceneOverAWholeLoop) {

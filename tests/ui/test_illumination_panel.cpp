@@ -14,6 +14,7 @@
 
 #include "nirslam/config/illumination_config.hpp"
 #include "nirslam/illumination/sweep_recorder.hpp"
+#include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/worker/worker.hpp"
 #include "ui/panels/illumination_panel.hpp"
@@ -268,6 +269,83 @@ TEST_F(IlluminationPanelTest, DrawsASweepRecordedByTheWorkerOnTheDemo) {
   ASSERT_TRUE(panel.recommended_marker());
   EXPECT_TRUE(near(pixel(shot, *panel.recommended_marker()), colours::recommended, 3));
   EXPECT_LT(shown->quality.saturated_fraction, 0.02) << "the recommended power respects the clipping limit";
+}
+
+// After a sweep of the simulated room (tripod, exposure locked) the panel shows the camera
+// response the worker fitted from the sweep's frames; Hold posts the folder to write it into, and
+// once the worker holds it the row says so.
+TEST_F(IlluminationPanelTest, ShowsTheSweepsCameraResponseAndHoldsIt) {
+  WorkerOptions options{.pacing = Pacing::AsFastAsPossible, .loop = true};
+  options.pipeline.mode = PipelineMode::Quality;
+  options.illumination = shipped_config();
+  options.illumination.sweep.settle_frames = 1;
+  Worker worker(options);
+  SimulatorOptions sim;
+  sim.motion = sim::MotionKind::Tripod;
+  sim.width = 160;
+  sim.height = 120;
+  sim.supersampling = 1;
+  sim.frames = 1000;
+  sim.exposure_mode = ExposureMode::Fixed;
+  sim.exposure_ms = 4.0;
+  worker.post(command::SetSource{[sim] { return make_simulated_source(sim); }});
+  const std::vector<double> powers = {0, 10, 20, 40, 70, 100, 150};
+  worker.post(command::Sweep{sweep_command::Start{powers, 2}});
+  worker.post(command::Start{});
+  for (const double power : powers) {
+    const auto asked = worker.wait_for(
+        [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 20s);
+    ASSERT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
+    worker.post(command::Sweep{sweep_command::Capture{power}});
+  }
+  const auto fitted = worker.wait_for(
+      [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state == SweepResponse::State::Done; }, 60s);
+  worker.post(command::Pause{});
+  ASSERT_TRUE(fitted->sweep_response && fitted->sweep_response->state == SweepResponse::State::Done) << fitted->message;
+
+  const auto root = std::filesystem::temp_directory_path() / "nirslam_ui_sweep_response";
+  std::filesystem::remove_all(root);
+  std::vector<Command> posted;
+  const CommandSink sink = [&posted](Command c) { posted.push_back(std::move(c)); };
+  IlluminationPanel panel;
+  panel.set_response_root(root);
+  ui_.reset();
+  ui_ = std::make_unique<OffscreenUi>(900, 290);
+  const auto draw = [&](const Snapshot& snapshot) { ui_->frame([&] { full_window([&] { panel.draw(snapshot, sink); }); }); };
+  draw(*fitted);
+  draw(*fitted);
+  const cv::Mat shot = ui_->read_rgba();
+  testing::save_if_requested(shot, "illumination-panel-response");
+  ASSERT_FALSE(panel.response_curve_rect().empty());
+  EXPECT_GT(testing::count_colour(shot, panel.response_curve_rect(), colours::estimate, 30),
+            static_cast<int>(panel.response_curve_rect().width() / 2))
+      << "the fitted curve is drawn";
+  const ScreenRect hold = panel.hold_button_rect();
+  ASSERT_FALSE(hold.empty());
+  ImGuiIO& io = ImGui::GetIO();
+  io.MousePos = hold.centre();
+  draw(*fitted);
+  io.MouseDown[0] = true;
+  draw(*fitted);
+  io.MouseDown[0] = false;
+  draw(*fitted);
+  io.MousePos = ImVec2(-1.0f, -1.0f);
+  ASSERT_EQ(posted.size(), 1u);
+  const auto* command = std::get_if<command::HoldSweepResponse>(&posted[0]);
+  ASSERT_NE(command, nullptr);
+  EXPECT_EQ(command->folder.parent_path(), root);
+  EXPECT_EQ(command->folder.filename().string().rfind("response-", 0), 0u) << command->folder;
+
+  worker.post(*command);
+  const auto held = worker.wait_for([](const Snapshot& s) { return s.sweep_response && s.sweep_response->held; }, 20s);
+  ASSERT_TRUE(held->sweep_response && held->sweep_response->held) << held->message;
+  EXPECT_TRUE(std::filesystem::exists(command->folder / "pcalib.txt"));
+  draw(*held);
+  draw(*held);
+  const cv::Mat held_shot = ui_->read_rgba();
+  testing::save_if_requested(held_shot, "illumination-panel-response-held");
+  EXPECT_GT(testing::count_colour(held_shot, panel.hold_button_rect(), colours::recommended, 40), 20) << "the held badge";
+  std::filesystem::remove_all(root);
 }
 
 }  // namespace

@@ -1,6 +1,9 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -355,6 +358,102 @@ SourceFactory small_simulated(sim::SceneKind scene) {
     options.exposure_mode = ExposureMode::Fixed;
     return make_simulated_source(options);
   };
+}
+
+// The camera's response from the wizard's own sweep in one step: the simulated room with the rig
+// on a tripod and the exposure locked; once the sweep is complete the worker fits the response
+// from the frames it kept (on a thread of its own, so frames keep flowing), and on request writes
+// it and holds it in the pipeline.
+TEST(WorkerOnSimulator, PowerSweepGivesTheCameraResponseAndThePipelineHoldsIt) {
+  WorkerOptions options{.pacing = Pacing::AsFastAsPossible, .loop = true};
+  options.pipeline.mode = PipelineMode::Calibrated;
+  options.illumination.sweep.settle_frames = 1;
+  Worker worker(options);
+  SimulatorOptions sim;
+  sim.scene = sim::SceneKind::Room;
+  sim.motion = sim::MotionKind::Tripod;
+  sim.width = 160;
+  sim.height = 120;
+  sim.supersampling = 1;
+  sim.frames = 1000;
+  sim.exposure_mode = ExposureMode::Fixed;
+  sim.exposure_ms = 4.0;
+  const ResponseModel truth = sim.response;
+  worker.post(command::SetSource{[sim] { return make_simulated_source(sim); }});
+  const std::vector<double> powers = {0, 5, 10, 20, 40, 65, 100, 150};
+  worker.post(command::Sweep{sweep_command::Start{powers, 2}});
+  worker.post(command::Start{});
+  for (const double power : powers) {
+    SCOPED_TRACE(power);
+    const auto asked = worker.wait_for(
+        [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 20s);
+    ASSERT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
+    worker.post(command::Sweep{sweep_command::Capture{power}});
+  }
+  const auto fitted = worker.wait_for(
+      [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state != SweepResponse::State::Fitting; },
+      60s);
+  ASSERT_TRUE(fitted->sweep_response);
+  const SweepResponse& response = *fitted->sweep_response;
+  ASSERT_EQ(response.state, SweepResponse::State::Done) << response.reason;
+  EXPECT_EQ(response.powers_w.size(), 7u);
+  EXPECT_EQ(response.images, 16) << "two frames at each of the 8 powers, 0 W (the ambient light) too";
+  EXPECT_LT(response.residual_rms_grey, 1.0);
+  EXPECT_TRUE(response.warning.empty()) << response.warning;
+  double mean = 0.0;
+  const std::vector<double> G = response.response.inverse_table(256), G_true = truth.inverse_table(256);
+  for (std::size_t i = 0; i < 256; ++i) mean += std::abs(G[i] - G_true[i]) / 256.0;
+  std::printf("response from the wizard's sweep: %.2f grey levels mean error, residual %.2f\n", mean,
+              response.residual_rms_grey);
+  EXPECT_LT(mean, 2.0);
+
+  const auto folder = std::filesystem::temp_directory_path() / "nirslam_worker_sweep_response";
+  std::filesystem::remove_all(folder);
+  worker.post(command::HoldSweepResponse{folder});
+  const auto held = worker.wait_for(
+      [](const Snapshot& s) {
+        return s.sweep_response && s.sweep_response->held && s.photometric &&
+               s.photometric->ambiguity.find("response given") != std::string::npos;
+      },
+      20s);
+  ASSERT_TRUE(held->sweep_response && held->sweep_response->held) << held->message;
+  EXPECT_NE(held->photometric->ambiguity.find("response given"), std::string::npos) << held->photometric->ambiguity;
+  EXPECT_TRUE(std::filesystem::exists(folder / "pcalib.txt"));
+  EXPECT_TRUE(std::filesystem::exists(folder / "sweep_response.json"));
+  worker.post(command::Pause{});
+  std::filesystem::remove_all(folder);
+}
+
+// A source whose frames report no exposure gives no response, and says why.
+TEST(Worker, PowerSweepWithoutReportedExposuresSaysWhy) {
+  WorkerOptions options = quality_only({.pacing = Pacing::AsFastAsPossible, .loop = true});
+  options.illumination.sweep.settle_frames = 1;
+  Worker worker(options);
+  CountingOptions endless;
+  endless.count = 100000;
+  worker.post(command::SetSource{[endless] { return std::make_unique<CountingSource>(endless); }});
+  worker.post(command::Sweep{sweep_command::Start{{25, 50, 100}, 2}});
+  worker.post(command::Start{});
+  for (const double power : {25.0, 50.0, 100.0}) {
+    const auto asked = worker.wait_for(
+        [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 10s);
+    ASSERT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
+    worker.post(command::Sweep{sweep_command::Capture{power}});
+  }
+  const auto done = worker.wait_for(
+      [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state != SweepResponse::State::Fitting; },
+      20s);
+  ASSERT_TRUE(done->sweep_response);
+  EXPECT_EQ(done->sweep_response->state, SweepResponse::State::Failed);
+  EXPECT_NE(done->sweep_response->reason.find("no exposure"), std::string::npos) << done->sweep_response->reason;
+  // Paused, so that the next frame's status does not replace the refusal before it is read.
+  worker.post(command::Pause{});
+  worker.wait_for([](const Snapshot& s) { return s.state == WorkerState::Paused; }, 10s);
+  worker.post(command::HoldSweepResponse{std::filesystem::temp_directory_path() / "nirslam_never_written"});
+  const auto refused = worker.wait_for(
+      [](const Snapshot& s) { return s.message.find("no camera response") != std::string::npos; }, 10s);
+  EXPECT_NE(refused->message.find("no camera response from a complete power sweep"), std::string::npos)
+      << refused->message;
 }
 
 TEST(WorkerOnSimulator, SimulatedSceneSelectsTheAdvisorsScenePrior) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <ctime>
 #include <string>
 
 #include <fmt/format.h>
@@ -55,7 +56,7 @@ void diamond(ImDrawList* draw, ImVec2 c, float r, ImU32 fill, ImU32 outline) {
 }  // namespace
 
 void IlluminationPanel::draw(const Snapshot& snapshot, const CommandSink& post) {
-  banner_ = plot_ = coverage_map_ = capture_button_ = {};
+  banner_ = plot_ = coverage_map_ = capture_button_ = response_curve_ = hold_button_ = {};
   marker_.reset();
   const ImVec2 avail = ImGui::GetContentRegionAvail();
   const float recommendation_height = ImGui::GetFrameHeightWithSpacing() + ImGui::GetTextLineHeightWithSpacing();
@@ -304,6 +305,7 @@ void IlluminationPanel::draw_wizard(const IlluminationStatus& status, const Snap
         ImGui::SetTooltip("Plateau share %.1f %%, at most %.2f %% saturated pixels", 100.0 * status.settings.plateau_share,
                           100.0 * status.settings.max_saturated_fraction);
       draw_settings_popup(status, post);
+      if (snapshot.sweep_response) draw_sweep_response(*snapshot.sweep_response, post);
       break;
     }
     case SweepStage::AwaitingPower: {
@@ -360,6 +362,85 @@ void IlluminationPanel::draw_wizard(const IlluminationStatus& status, const Snap
         post(command::Sweep{sweep_command::Finish{}});
       break;
     }
+  }
+}
+
+void IlluminationPanel::draw_sweep_response(const SweepResponse& response, const CommandSink& post) {
+  ImGui::AlignTextToFramePadding();
+  ImGui::TextColored(to_vec4(colours::text_dim), "Camera response");
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip("Fitted from the sweep's frames (the rig still, the exposure locked): the lamp's irradiance\n"
+                      "follows power x exposure, other light is fitted per point. Hold writes DSO's pcalib.txt and\n"
+                      "has the pipeline hold it, estimating exposures and the halo factor online.");
+  ImGui::SameLine();
+  switch (response.state) {
+    case SweepResponse::State::Fitting:
+      ImGui::AlignTextToFramePadding();
+      ImGui::TextColored(to_vec4(colours::text_dim), "fitting the sweep's frames...");
+      return;
+    case SweepResponse::State::Failed:
+      ImGui::AlignTextToFramePadding();
+      ImGui::TextColored(to_vec4(colours::banner_dark), "none: %s", response.reason.c_str());
+      if (ImGui::IsItemHovered()) ImGui::SetTooltip("%s", response.reason.c_str());
+      return;
+    case SweepResponse::State::Done:
+      break;
+  }
+  // The fitted curve f(X) over X in [0, 1], as a small inline plot.
+  const float height = ImGui::GetFrameHeight();
+  const ImVec2 origin = ImGui::GetCursorScreenPos();
+  const ImVec2 size(2.2f * height, height);
+  ImGui::Dummy(size);
+  response_curve_ = {origin, ImVec2(origin.x + size.x, origin.y + size.y)};
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  draw->AddRectFilled(response_curve_.min, response_curve_.max, colours::frame_bg);
+  constexpr int kSegments = 24;
+  ImVec2 previous = ImVec2(origin.x, origin.y + size.y);
+  for (int k = 1; k <= kSegments; ++k) {
+    const double X = static_cast<double>(k) / kSegments;
+    const ImVec2 point(origin.x + size.x * static_cast<float>(X),
+                       origin.y + size.y * (1.0f - static_cast<float>(std::clamp(response.response(X), 0.0, 1.0))));
+    draw->AddLine(previous, point, colours::estimate, 1.5f);
+    previous = point;
+  }
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("f(X): grey over irradiance x exposure, both on [0, 1]");
+  ImGui::SameLine();
+  if (response.held) {
+    badge("held", colours::recommended);
+    hold_button_ = last_item_rect();
+    if (ImGui::IsItemHovered()) ImGui::SetTooltip("%s", (response.folder / "pcalib.txt").string().c_str());
+  } else {
+    const std::string tooltip =
+        fmt::format("Write pcalib.txt under {} and hold it in the pipeline",
+                    response_root_.empty() ? std::string("the sessions folder") : response_root_.string());
+    const bool hold = icon_button("hold_response", Icon::Fit, "Hold", static_cast<bool>(post), tooltip.c_str());
+    hold_button_ = last_item_rect();
+    if (hold) {
+      const std::time_t now = std::time(nullptr);
+      std::tm utc{};
+      gmtime_r(&now, &utc);
+      char name[64];
+      std::strftime(name, sizeof(name), "response-%Y%m%d-%H%M%S", &utc);
+      post(command::HoldSweepResponse{response_root_ / name});
+    }
+  }
+  // The figures, short; the rest in the tooltip.
+  ImGui::SameLine();
+  ImGui::AlignTextToFramePadding();
+  // A share within the estimate's noise (it may come out slightly below 0) is no ambient light.
+  const std::string figures = response.ambient_share_at_weakest < 0.005
+                                  ? fmt::format("{:.2f} gl · no ambient light", response.residual_rms_grey)
+                                  : fmt::format("{:.2f} gl · ambient {:.1f} %", response.residual_rms_grey,
+                                                100.0 * response.ambient_share_at_weakest);
+  ImGui::TextColored(to_vec4(response.warning.empty() ? colours::text : colours::banner_dark), "%s", figures.c_str());
+  if (ImGui::IsItemHovered()) {
+    const std::string detail = fmt::format(
+        "residual {:.2f} grey levels rms over {} frames at {} powers ({} points)\nambient light: {:.1f} % of the lamp's "
+        "irradiance at {:g} W (median over the points){}",
+        response.residual_rms_grey, response.images, response.powers_w.size(), response.points,
+        100.0 * response.ambient_share_at_weakest, response.weakest_power_w,
+        response.warning.empty() ? std::string() : "\n" + response.warning);
+    ImGui::SetTooltip("%s", detail.c_str());
   }
 }
 

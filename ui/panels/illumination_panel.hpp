@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <optional>
 #include <vector>
 
@@ -20,7 +21,10 @@ namespace nirslam::ui {
 //     capture progress, skip, finish,
 //   - the entropy-vs-power plot: measured points (mean, one standard deviation), the fitted
 //     saturating curve, the plateau share, and the recommended power (or the prior's range),
-//   - the recommendation with its confidence; its reasons in the tooltip.
+//   - the recommendation with its confidence; its reasons in the tooltip,
+//   - after a sweep, the camera response fitted from its frames (snapshot.sweep_response: the
+//     curve, residual, ambient share, or why there is none) and Hold, which writes it under the
+//     response folder and has the pipeline hold it (command::HoldSweepResponse).
 // It reads snapshot.illumination, snapshot.quality/structure/exposure; the wizard's state lives in
 // the worker (SweepRecorder), the panel only posts command::Sweep and keeps what is being typed.
 class IlluminationPanel {
@@ -33,6 +37,12 @@ public:
   const ScreenRect& plot_rect() const { return plot_; }            // the curve plot's data area
   const ScreenRect& coverage_map_rect() const { return coverage_map_; }
   const ScreenRect& capture_button_rect() const { return capture_button_; }  // empty unless a power is asked for
+  const ScreenRect& response_curve_rect() const { return response_curve_; }  // empty unless a response is shown
+  const ScreenRect& hold_button_rect() const { return hold_button_; }
+
+  // Where Hold writes the sweep's response: a new folder response-YYYYmmdd-HHMMSS under `root`
+  // (the application passes the sessions folder).
+  void set_response_root(const std::filesystem::path& root) { response_root_ = root; }
   // Where the recommended point was drawn (sweep: on the curve; prior: on the power axis).
   const std::optional<ImVec2>& recommended_marker() const { return marker_; }
 
@@ -44,11 +54,15 @@ private:
   void draw_settings_popup(const IlluminationStatus& status, const CommandSink& post);
   void draw_plot(const IlluminationStatus& status, float height);  // title row and plot in `height`
   void draw_recommendation(const IlluminationStatus& status);
+  void draw_sweep_response(const SweepResponse& response, const CommandSink& post);
 
   ScreenRect banner_;
   ScreenRect plot_;
   ScreenRect coverage_map_;
   ScreenRect capture_button_;
+  ScreenRect response_curve_;
+  ScreenRect hold_button_;
+  std::filesystem::path response_root_;
   std::optional<ImVec2> marker_;
 
   // What the operator is typing: the power to confirm follows the wizard's request until edited.

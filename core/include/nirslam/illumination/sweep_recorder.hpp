@@ -86,6 +86,9 @@ public:
   // `power_from_frame` says whether the frame itself reported the power (then no settling is
   // needed). Returns true when the status changed.
   bool add_frame(const FrameMetrics& metrics, std::optional<double> power_w, bool power_from_frame);
+  // The power the last add_frame counted its frame at; nothing when it was skipped (settling,
+  // another power, no sweep capturing).
+  std::optional<double> last_captured_w() const { return last_captured_w_; }
 
   // The lamp in use (manual entry or a source's own); the recommendation is held to its range.
   void set_illuminator(const IlluminatorCapabilities& capabilities);
@@ -108,6 +111,7 @@ private:
   SweepProgress progress_;
   Recommendation recommendation_;
   std::string message_;
+  std::optional<double> last_captured_w_;
   std::uint64_t revision_ = 0;
   std::shared_ptr<const IlluminationStatus> status_;
 };

@@ -26,10 +26,11 @@ enum class MotionKind {
   Handheld,  // walking speed, camera at eye height, looking around, bob and tremor
   Vehicle,   // a cart or car: faster, heading follows the path, slight vibration
   Robot,     // a small ground robot: slow, low camera, tilted up a little
+  Tripod,    // the rig stands still (where the handheld path starts): power and exposure sweeps
 };
 
 std::string_view to_string(MotionKind kind);
-// "handheld" (also "hand-held"), "vehicle", "robot"; any case.
+// "handheld" (also "hand-held"), "vehicle", "robot", "tripod" (also "still"); any case.
 std::optional<MotionKind> parse_motion_kind(std::string_view name);
 
 class Trajectory {

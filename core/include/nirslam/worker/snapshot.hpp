@@ -8,6 +8,7 @@
 
 #include "nirslam/illumination/exposure_check.hpp"
 #include "nirslam/illumination/sweep_recorder.hpp"
+#include "nirslam/illumination/sweep_response.hpp"
 #include "nirslam/image/frame.hpp"
 #include "nirslam/quality/frame_metrics.hpp"
 #include "nirslam/quality/image_quality.hpp"
@@ -71,6 +72,9 @@ struct Snapshot {
   // The power sweep wizard, the sweeps and the power recommendation. Shared between snapshots
   // until it changes; never null in snapshots the worker publishes.
   std::shared_ptr<const IlluminationStatus> illumination;
+  // The camera response fitted from the wizard's last complete sweep (its frames, the rig
+  // still): fitting, done or failed. Null before a sweep completes and after a new one starts.
+  std::shared_ptr<const SweepResponse> sweep_response;
   PipelineFrameInfo stages;    // of `frame`
   std::string pipeline_mode;   // "quality", "odometry", "calibrated", ... (PipelineMode)
   bool pipeline_mode_automatic = false;  // pipeline_mode was chosen for the source (automatic_pipeline_mode)

@@ -6,6 +6,7 @@
 #include <deque>
 #include <filesystem>
 #include <functional>
+#include <future>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -17,6 +18,7 @@
 #include "nirslam/config/illumination_config.hpp"
 #include "nirslam/illumination/illuminator.hpp"
 #include "nirslam/illumination/sweep_recorder.hpp"
+#include "nirslam/illumination/sweep_response.hpp"
 #include "nirslam/pipeline/slam_pipeline.hpp"
 #include "nirslam/quality/frame_metrics.hpp"
 #include "nirslam/session/session_recorder.hpp"
@@ -86,12 +88,19 @@ struct StopRecording {};
 // frame (it is processed, so the feed shows it). Refused with a message for a source that cannot
 // seek, a position past the end, and while a recording runs (the session would get a gap).
 struct Seek { std::size_t position; };
+// Writes the camera response fitted from the last power sweep (Snapshot::sweep_response, done)
+// into `folder` (pcalib.txt, sweep_response.json) and holds it in the pipeline from the next
+// frame (given_calibration_folder = folder, given_holds: response; the stages restart, the
+// exposures and the halo factor estimated online). Refused with a message without such a response
+// or when the folder cannot be written.
+struct HoldSweepResponse { std::filesystem::path folder; };
 }  // namespace command
 
 using Command = std::variant<command::Start, command::Pause, command::Step, command::Stop,
                              command::Reset, command::SetSource, command::SetIlluminatorPower,
                              command::SetPacing, command::Sweep, command::SetPipelineMode,
-                             command::StartRecording, command::StopRecording, command::Seek>;
+                             command::StartRecording, command::StopRecording, command::Seek,
+                             command::HoldSweepResponse>;
 
 // Owns a source and the pipeline in its own thread. The UI (or a headless writer) posts commands
 // and reads the latest immutable snapshot; neither call waits for frame processing.
@@ -145,6 +154,13 @@ private:
   // full) and finalises it; returns the status message. No-op without a recorder.
   std::string finish_recording(const std::string& reason);
   void publish_recording_status(std::string message);
+  // The power sweep's response (sweep_response.hpp): the wizard's frames kept while it captures,
+  // fitted on a thread of its own once the sweep is complete, the result collected when ready.
+  void keep_sweep_shot(const Frame& frame);
+  void start_sweep_fit_if_complete();
+  void collect_sweep_fit();
+  void reset_sweep_response();
+  void hold_sweep_response(const command::HoldSweepResponse& hold);
 
   // Touched by the worker thread only.
   WorkerOptions options_;
@@ -167,6 +183,11 @@ private:
   std::unique_ptr<SessionRecorder> recorder_;  // while a recording runs, and until the next starts
   bool recorder_finished_ = true;              // recorder_ has been stopped and finalised
   RecordingStatus recording_status_;           // as last published
+  SweepShots sweep_shots_;
+  bool sweep_shots_unfitted_ = false;  // shots kept since the last fit started
+  std::shared_ptr<const SweepResponse> sweep_response_;  // null until a sweep completes
+  std::uint64_t sweep_generation_ = 0;  // a fit of an older sweep is dropped when it arrives
+  std::uint64_t sweep_fit_generation_ = 0;
 
   mutable std::mutex queue_mutex_;
   std::condition_variable queue_cv_;
@@ -175,6 +196,8 @@ private:
   std::optional<FinishHandler> incoming_finish_handler_;
   FinishHandler finish_handler_;  // worker thread only
   bool exit_requested_ = false;
+  bool sweep_fit_ready_ = false;  // the fit's thread has its result (under queue_mutex_)
+  std::future<SweepResponse> sweep_fit_;  // after the mutex and the condition it signals
 
   // Held only to copy or swap the pointer (never while processing), so snapshot() returns within
   // nanoseconds whatever the worker is doing. libstdc++ 12's std::atomic<std::shared_ptr> was

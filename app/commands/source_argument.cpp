@@ -20,31 +20,28 @@ namespace nirslam::app {
 
 namespace {
 
-double parse_power(std::string text, const std::string& argument) {
-  if (!text.empty() && (text.back() == 'W' || text.back() == 'w')) text.pop_back();
-  double watts = 0.0;
+// A number in (0, 1000] (watts, milliseconds), the whole of `text`; else `complaint` about `argument`.
+double parse_up_to_a_thousand(const std::string& text, const std::string& argument, const char* complaint) {
+  double value = 0.0;
   std::size_t used = 0;
   try {
-    watts = std::stod(text, &used);
+    value = std::stod(text, &used);
   } catch (const std::exception&) {
     used = 0;
   }
-  if (used == 0 || used != text.size() || !(watts > 0.0) || watts > 1000.0)
-    throw std::invalid_argument("'" + argument + "': the lamp power after '@' must be a number of watts in (0, 1000], e.g. sim:tunnel@50W");
-  return watts;
+  if (used == 0 || used != text.size() || !(value > 0.0) || value > 1000.0)
+    throw std::invalid_argument("'" + argument + "': " + complaint);
+  return value;
+}
+
+double parse_power(std::string text, const std::string& argument) {
+  if (!text.empty() && (text.back() == 'W' || text.back() == 'w')) text.pop_back();
+  return parse_up_to_a_thousand(text, argument,
+                                "the lamp power after '@' must be a number of watts in (0, 1000], e.g. sim:tunnel@50W");
 }
 
 double parse_exposure(const std::string& text, const std::string& argument) {
-  double ms = 0.0;
-  std::size_t used = 0;
-  try {
-    ms = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != text.size() || !(ms > 0.0) || ms > 1000.0)
-    throw std::invalid_argument("'" + argument + "': exposure= must be milliseconds in (0, 1000], e.g. sim:room/exposure=4");
-  return ms;
+  return parse_up_to_a_thousand(text, argument, "exposure= must be milliseconds in (0, 1000], e.g. sim:room/exposure=4");
 }
 
 }  // namespace

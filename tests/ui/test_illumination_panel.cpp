@@ -19,6 +19,7 @@
 #include "nirslam/worker/worker.hpp"
 #include "ui/panels/illumination_panel.hpp"
 #include "ui/ui_test_support.hpp"
+#include "worker/still_rig_sweep.hpp"
 
 namespace nirslam::ui {
 namespace {
@@ -280,24 +281,11 @@ TEST_F(IlluminationPanelTest, ShowsTheSweepsCameraResponseAndHoldsIt) {
   options.illumination = shipped_config();
   options.illumination.sweep.settle_frames = 1;
   Worker worker(options);
-  SimulatorOptions sim;
-  sim.motion = sim::MotionKind::Tripod;
-  sim.width = 160;
-  sim.height = 120;
-  sim.supersampling = 1;
-  sim.frames = 1000;
-  sim.exposure_mode = ExposureMode::Fixed;
-  sim.exposure_ms = 4.0;
+  const SimulatorOptions sim = nirslam::testing::still_rig();
   worker.post(command::SetSource{[sim] { return make_simulated_source(sim); }});
-  const std::vector<double> powers = {0, 10, 20, 40, 70, 100, 150};
-  worker.post(command::Sweep{sweep_command::Start{powers, 2}});
   worker.post(command::Start{});
-  for (const double power : powers) {
-    const auto asked = worker.wait_for(
-        [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 20s);
-    ASSERT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
-    worker.post(command::Sweep{sweep_command::Capture{power}});
-  }
+  nirslam::testing::sweep_through(worker, {0, 10, 20, 40, 70, 100, 150}, 2);
+  if (HasFatalFailure()) return;
   const auto fitted = worker.wait_for(
       [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state == SweepResponse::State::Done; }, 60s);
   worker.post(command::Pause{});

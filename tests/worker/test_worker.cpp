@@ -15,6 +15,7 @@
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/worker/worker.hpp"
 #include "counting_source.hpp"
+#include "worker/still_rig_sweep.hpp"
 #include "opencv_serial_under_tsan.hpp"
 
 namespace nirslam {
@@ -369,27 +370,12 @@ TEST(WorkerOnSimulator, PowerSweepGivesTheCameraResponseAndThePipelineHoldsIt) {
   options.pipeline.mode = PipelineMode::Calibrated;
   options.illumination.sweep.settle_frames = 1;
   Worker worker(options);
-  SimulatorOptions sim;
-  sim.scene = sim::SceneKind::Room;
-  sim.motion = sim::MotionKind::Tripod;
-  sim.width = 160;
-  sim.height = 120;
-  sim.supersampling = 1;
-  sim.frames = 1000;
-  sim.exposure_mode = ExposureMode::Fixed;
-  sim.exposure_ms = 4.0;
+  const SimulatorOptions sim = testing::still_rig();
   const ResponseModel truth = sim.response;
   worker.post(command::SetSource{[sim] { return make_simulated_source(sim); }});
-  const std::vector<double> powers = {0, 5, 10, 20, 40, 65, 100, 150};
-  worker.post(command::Sweep{sweep_command::Start{powers, 2}});
   worker.post(command::Start{});
-  for (const double power : powers) {
-    SCOPED_TRACE(power);
-    const auto asked = worker.wait_for(
-        [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 20s);
-    ASSERT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
-    worker.post(command::Sweep{sweep_command::Capture{power}});
-  }
+  testing::sweep_through(worker, {0, 5, 10, 20, 40, 65, 100, 150}, 2);
+  if (HasFatalFailure()) return;
   const auto fitted = worker.wait_for(
       [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state != SweepResponse::State::Fitting; },
       60s);
@@ -432,14 +418,9 @@ TEST(Worker, PowerSweepWithoutReportedExposuresSaysWhy) {
   CountingOptions endless;
   endless.count = 100000;
   worker.post(command::SetSource{[endless] { return std::make_unique<CountingSource>(endless); }});
-  worker.post(command::Sweep{sweep_command::Start{{25, 50, 100}, 2}});
   worker.post(command::Start{});
-  for (const double power : {25.0, 50.0, 100.0}) {
-    const auto asked = worker.wait_for(
-        [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 10s);
-    ASSERT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
-    worker.post(command::Sweep{sweep_command::Capture{power}});
-  }
+  testing::sweep_through(worker, {25, 50, 100}, 2);
+  if (HasFatalFailure()) return;
   const auto done = worker.wait_for(
       [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state != SweepResponse::State::Fitting; },
       20s);

@@ -2,6 +2,7 @@
 
 #include <exception>
 #include <stdexcept>
+#include <tuple>
 #include <type_traits>
 
 #include <spdlog/spdlog.h>
@@ -182,6 +183,11 @@ void Worker::apply(Command& command) {
           pending_frame_.reset();
           steps_pending_ = 0;
           reset_sweep_response();  // another camera, perhaps
+          if (given_before_hold_) {
+            std::tie(options_.pipeline.given_calibration_folder, options_.pipeline.given_calibration_holds) =
+                *given_before_hold_;
+            given_before_hold_.reset();
+          }
           auto next = std::make_shared<Snapshot>();
           next->sequence = snapshot()->sequence + 1;
           next->illuminator_power_w = power_w_;
@@ -632,6 +638,8 @@ void Worker::hold_sweep_response(const command::HoldSweepResponse& hold) {
   }
   held->folder = hold.folder;
   held->held = true;
+  if (!given_before_hold_)
+    given_before_hold_.emplace(options_.pipeline.given_calibration_folder, options_.pipeline.given_calibration_holds);
   options_.pipeline.given_calibration_folder = hold.folder;
   options_.pipeline.given_calibration_holds = GivenCalibrationParts::Response;
   restart_pipeline();

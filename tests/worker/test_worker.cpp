@@ -406,6 +406,20 @@ TEST(WorkerOnSimulator, PowerSweepGivesTheCameraResponseAndThePipelineHoldsIt) {
   EXPECT_NE(held->photometric->ambiguity.find("response given"), std::string::npos) << held->photometric->ambiguity;
   EXPECT_TRUE(std::filesystem::exists(folder / "pcalib.txt"));
   EXPECT_TRUE(std::filesystem::exists(folder / "sweep_response.json"));
+
+  // Another source may be another camera: it starts without the sweep's response.
+  worker.post(command::SetSource{[sim] { return make_simulated_source(sim); }});
+  worker.post(command::Start{});
+  const auto next_source = worker.wait_for(
+      [](const Snapshot& s) {
+        return !s.sweep_response && s.frames_processed > 2 && s.photometric &&
+               s.photometric->ambiguity.find("response given") == std::string::npos;
+      },
+      20s);
+  EXPECT_FALSE(next_source->sweep_response);
+  ASSERT_TRUE(next_source->photometric);
+  EXPECT_EQ(next_source->photometric->ambiguity.find("response given"), std::string::npos)
+      << next_source->photometric->ambiguity;
   worker.post(command::Pause{});
   std::filesystem::remove_all(folder);
 }

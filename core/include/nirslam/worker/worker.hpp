@@ -92,7 +92,8 @@ struct Seek { std::size_t position; };
 // into `folder` (pcalib.txt, sweep_response.json) and holds it in the pipeline from the next
 // frame (given_calibration_folder = folder, given_holds: response; the stages restart, the
 // exposures and the halo factor estimated online). Refused with a message without such a response
-// or when the folder cannot be written.
+// or when the folder cannot be written. Until the source changes: the next source gets the given
+// calibration of before (it may be another camera).
 struct HoldSweepResponse { std::filesystem::path folder; };
 }  // namespace command
 
@@ -188,6 +189,9 @@ private:
   std::shared_ptr<const SweepResponse> sweep_response_;  // null until a sweep completes
   std::uint64_t sweep_generation_ = 0;  // a fit of an older sweep is dropped when it arrives
   std::uint64_t sweep_fit_generation_ = 0;
+  // The given calibration before HoldSweepResponse replaced it: restored for the next source,
+  // which may be another camera.
+  std::optional<std::pair<std::filesystem::path, GivenCalibrationParts>> given_before_hold_;
 
   mutable std::mutex queue_mutex_;
   std::condition_variable queue_cv_;

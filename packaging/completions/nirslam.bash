@@ -74,7 +74,7 @@ _nirslam_kind_of() {
 _nirslam_prose_values() {
   case $1 in
     --scene | --scenes) echo "room outdoor parking tunnel" ;;
-    --motion) echo "handheld vehicle robot" ;;
+    --motion) echo "handheld vehicle robot tripod" ;;
     --camera) echo "pinhole fov" ;;
     --response) echo "linear gamma log filmic" ;;
     --exposure) echo "auto" ;;

@@ -87,6 +87,7 @@ Application::Layout Application::compute_layout(ImVec2 display) const {
 void Application::draw(const Snapshot& snapshot) {
   notifications_.observe(snapshot);
   watch_camera();
+  lock_camera_for_sweep(snapshot);
   handle_shortcuts(snapshot);
   layout_ = compute_layout(ImGui::GetIO().DisplaySize);
 
@@ -204,6 +205,21 @@ void Application::watch_camera() {
       notifications_.push(NotificationArea::Severity::Notice, what + " is back and streaming again.");
     camera_connection_ = state.connection;
   }
+}
+
+// The wizard's power sweep runs on the worker; the camera's controls are the GUI's. Holding the
+// exposure for the sweep here keeps the worker free of camera controls.
+void Application::lock_camera_for_sweep(const Snapshot& snapshot) {
+  const std::shared_ptr<CameraControls> controls =
+      session_actions_.camera_controls ? session_actions_.camera_controls() : nullptr;
+  const SweepStage stage = snapshot.illumination ? snapshot.illumination->progress.stage : SweepStage::Idle;
+  const SweepCameraLock::Change change = sweep_camera_lock_.update(stage, controls);
+  using Event = SweepCameraLock::Event;
+  if (change.event == Event::OperatorUnlocked || change.event == Event::Failed)
+    notifications_.push(NotificationArea::Severity::Warning, change.message);
+  else if (change.event != Event::None)
+    notifications_.push(NotificationArea::Severity::Notice, change.message);
+  illumination_.set_camera_hold(sweep_camera_lock_.holding());
 }
 
 void Application::draw_camera_tab() {

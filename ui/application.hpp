@@ -7,6 +7,7 @@
 #include <imgui.h>
 
 #include "nirslam/config/ui_preferences.hpp"
+#include "nirslam/illumination/sweep_camera_lock.hpp"
 #include "nirslam/worker/snapshot.hpp"
 #include "ui/command_sink.hpp"
 #include "ui/panels/camera_panel.hpp"
@@ -100,6 +101,7 @@ private:
   void run_shortcut(ShortcutAction action, const Snapshot& snapshot);
   void draw_camera_tab();
   void watch_camera();
+  void lock_camera_for_sweep(const Snapshot& snapshot);
 
   CommandSink post_;
   ControlBar controls_;
@@ -113,6 +115,7 @@ private:
   RecordingPanel recording_;
   CameraPanel camera_;
   std::optional<CameraConnection> camera_connection_;  // last seen, to notify on unplug / failure
+  SweepCameraLock sweep_camera_lock_;
   SessionActions session_actions_;
   NotificationArea notifications_;
   ShortcutHelp help_;

@@ -88,14 +88,23 @@ ScreenRect draw_overlay_table(ImDrawList* draw, const ScreenRect& area, Corner c
   return box;
 }
 
+namespace {
+float icon_side() { return std::floor(ImGui::GetFontSize() * 0.72f); }
+}  // namespace
+
+float icon_button_width(const char* label) {
+  const ImGuiStyle& style = ImGui::GetStyle();
+  const float text = ImGui::CalcTextSize(label).x;
+  return 2.0f * style.FramePadding.x + icon_side() + (text > 0.0f ? style.ItemInnerSpacing.x + text : 0.0f);
+}
+
 bool icon_button(const char* id, Icon icon, const char* label, bool enabled, const char* tooltip) {
   const ImGuiStyle& style = ImGui::GetStyle();
   const float height = ImGui::GetFrameHeight();
-  const float icon_size = std::floor(ImGui::GetFontSize() * 0.72f);
+  const float icon_size = icon_side();
   const ImVec2 text = ImGui::CalcTextSize(label);
   const bool has_text = text.x > 0.0f;
-  const ImVec2 size(2.0f * style.FramePadding.x + icon_size + (has_text ? style.ItemInnerSpacing.x + text.x : 0.0f),
-                    height);
+  const ImVec2 size(icon_button_width(label), height);
   if (!enabled) ImGui::BeginDisabled();
   ImGui::PushID(id);
   const bool pressed = ImGui::Button("##icon_button", size);

@@ -42,6 +42,8 @@ enum class Icon { Play, Pause, Step, Stop, Fit };
 // A button with a drawn icon and a label (no "##" suffixes: the id is separate); disabled buttons are greyed and return false. The
 // tooltip (if any) shows on hover.
 bool icon_button(const char* id, Icon icon, const char* label, bool enabled, const char* tooltip = nullptr);
+// The width icon_button takes with this label (to lay out a row before drawing it).
+float icon_button_width(const char* label);
 
 // The last ImGui item's rectangle (for the screenshot tests' geometry).
 ScreenRect last_item_rect();

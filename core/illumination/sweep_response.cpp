@@ -23,23 +23,27 @@ const char* to_string(SweepResponse::State state) {
 void SweepShots::clear() {
   shots_.clear();
   missing_exposure_ = 0;
+  unusable_images_ = 0;
 }
 
 void SweepShots::add(double power_w, const Frame& frame) {
   const auto at_power = std::count_if(shots_.begin(), shots_.end(),
                                       [&](const SweepShot& shot) { return std::abs(shot.power_w - power_w) < 1e-3; });
   if (at_power >= kPerPower) return;
-  if (!frame.exposure_ms || !(*frame.exposure_ms > 0.0) || frame.image.empty() || frame.image.channels() != 1) {
+  if (frame.image.empty() || frame.image.channels() != 1 ||
+      (frame.image.depth() != CV_8U && frame.image.depth() != CV_16U)) {
+    ++unusable_images_;
+    return;
+  }
+  if (!frame.exposure_ms || !(*frame.exposure_ms > 0.0)) {
     ++missing_exposure_;
     return;
   }
   SweepShot shot{power_w, *frame.exposure_ms * frame.gain.value_or(1.0), {}};
   if (frame.image.depth() == CV_16U)
     frame.image.convertTo(shot.grey, CV_8U, 1.0 / 257.0);
-  else if (frame.image.depth() == CV_8U)
-    shot.grey = frame.image.clone();  // the source may reuse its buffer
   else
-    return;
+    shot.grey = frame.image.clone();  // the source may reuse its buffer
   shots_.push_back(std::move(shot));
 }
 

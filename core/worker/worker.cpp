@@ -575,9 +575,11 @@ void Worker::start_sweep_fit_if_complete() {
     sweep_fit_ready_ = false;
   }
   auto fitting = std::make_shared<SweepResponse>();
-  if (sweep_shots_.shots().empty() && sweep_shots_.missing_exposure() > 0) {
+  if (sweep_shots_.shots().empty() && (sweep_shots_.missing_exposure() > 0 || sweep_shots_.unusable_images() > 0)) {
     fitting->state = SweepResponse::State::Failed;
-    fitting->reason = "the source reports no exposure time with its frames; the response needs power x exposure";
+    fitting->reason = sweep_shots_.missing_exposure() > 0
+                          ? "the source reports no exposure time with its frames; the response needs power x exposure"
+                          : "the source's frames are not 8- or 16-bit grey images; the response is fitted on grey levels";
     sweep_response_ = std::move(fitting);
     return;
   }

@@ -27,14 +27,18 @@ TEST(SweepShots, KeepsTwoFramesAPowerWithTheirExposureOnTheEightBitScale) {
   for (int k = 0; k < 3; ++k) shots.add(20.0, frame_of(grey, 4.0, 2.0));
   shots.add(40.0, frame_of(cv::Mat(8, 8, CV_16UC1, cv::Scalar(257 * 200)), 4.0));
   shots.add(60.0, frame_of(grey, std::nullopt));
-  ASSERT_EQ(shots.shots().size(), 3u) << "two at 20 W, one at 40 W, none without an exposure";
+  shots.add(80.0, frame_of(cv::Mat(8, 8, CV_8UC3, cv::Scalar(1, 2, 3)), 4.0));
+  shots.add(80.0, frame_of(cv::Mat(8, 8, CV_32FC1, cv::Scalar(0.5)), 4.0));
+  ASSERT_EQ(shots.shots().size(), 3u) << "two at 20 W, one at 40 W, none without an exposure or grey image";
   EXPECT_DOUBLE_EQ(shots.shots()[0].exposure, 8.0) << "exposure time x gain";
   EXPECT_EQ(shots.shots()[2].grey.type(), CV_8UC1);
   EXPECT_EQ(shots.shots()[2].grey.at<std::uint8_t>(3, 3), 200);
   EXPECT_EQ(shots.missing_exposure(), 1);
+  EXPECT_EQ(shots.unusable_images(), 2) << "a colour and a floating-point frame";
   shots.clear();
   EXPECT_TRUE(shots.shots().empty());
   EXPECT_EQ(shots.missing_exposure(), 0);
+  EXPECT_EQ(shots.unusable_images(), 0);
 }
 
 TEST(SweepResponse, TooFewPowersOrADegenerateFitFailWithAReason) {

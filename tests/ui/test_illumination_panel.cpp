@@ -1,22 +1,28 @@
 // The illumination panel rendered headless: the warning banner's colour follows the frame's
 // verdict, the fitted curve lies where the fit puts it, the recommended point is marked on it, the
-// measured points are drawn; and a sweep recorded by the worker on the demo's lamp, end to end.
+// measured points are drawn; a sweep recorded by the worker on the demo's lamp, end to end; the
+// camera's auto exposure held by the window while the wizard sweeps, and given back after.
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <thread>
 #include <variant>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "core/test_v4l2_fixtures.hpp"
+#include "nirslam/capture/v4l2_source.hpp"
 #include "nirslam/config/illumination_config.hpp"
 #include "nirslam/illumination/sweep_recorder.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/worker/worker.hpp"
+#include "ui/application.hpp"
+#include "ui/gl/shader.hpp"
 #include "ui/panels/illumination_panel.hpp"
 #include "ui/ui_test_support.hpp"
 #include "worker/still_rig_sweep.hpp"
@@ -334,6 +340,60 @@ TEST_F(IlluminationPanelTest, ShowsTheSweepsCameraResponseAndHoldsIt) {
   testing::save_if_requested(held_shot, "illumination-panel-response-held");
   EXPECT_GT(testing::count_colour(held_shot, panel.hold_button_rect(), colours::recommended, 40), 20) << "the held badge";
   std::filesystem::remove_all(root);
+}
+
+// The window holds a live camera's exposure while the wizard sweeps (the worker's wizard, the
+// GUI's camera controls): locked when the sweep starts, shown under the wizard, given back after.
+TEST_F(IlluminationPanelTest, TheWindowLocksTheCamerasAutoExposureWhileTheWizardSweeps) {
+  EmulatedCameraSpec camera = nirslam::testing::small_camera();
+  auto emulator = nirslam::testing::emulator_with(camera);
+  emulator->limit_frames("/dev/video0", 0);
+  V4l2SourceSpec spec;
+  spec.format = PixelFormat::Grey;
+  spec.width = 64;
+  spec.height = 48;
+  spec.auto_exposure = true;
+  const auto source = open_v4l2_source(spec, emulator);
+  const std::shared_ptr<CameraControls> controls = source->controls();
+
+  ui_.reset();
+  ui_ = std::make_unique<OffscreenUi>(1280, 800);
+  Application app(gl::find_shader_dir(), [](Command) {});
+  SessionActions actions;
+  actions.camera_controls = [controls] { return controls; };
+  app.set_session_actions(actions);
+  app.select_tab(Application::StripTab::Illumination);
+
+  SweepRecorder recorder(shipped_config());
+  recorder.apply(sweep_command::Start{});
+  Snapshot sweeping = snapshot_of(textured_frame(0.0, false), recorder.status(), shipped_config().exposure);
+  sweeping.state = WorkerState::Running;
+  const auto wait_for = [&](const Snapshot& snapshot, auto done) {
+    const auto deadline = std::chrono::steady_clock::now() + 5s;
+    do {
+      ui_->frame([&] { app.draw(snapshot); });
+      if (done(controls->state())) return true;
+      std::this_thread::sleep_for(1ms);
+    } while (std::chrono::steady_clock::now() < deadline);
+    return false;
+  };
+  ASSERT_TRUE(wait_for(sweeping, [](const CameraState& s) { return s.locked && !s.auto_exposure; }));
+  emulator->allow_frames("/dev/video0", 1);  // a frame says what the exposure is held at
+  ASSERT_TRUE(source->next().has_value());
+  ui_->frame([&] { app.draw(sweeping); });
+  const cv::Mat shot = ui_->read_rgba();
+  testing::save_if_requested(shot, "WindowLocksTheCameraForTheSweep");
+  EXPECT_EQ(app.notifications().size(), 1u) << "the lock is announced";
+  const ScreenRect hold = app.illumination().camera_hold_rect();
+  ASSERT_FALSE(hold.empty()) << "the wizard says what the camera is held at";
+  EXPECT_GT(testing::count_colour(shot, hold, colours::text_dim, 40), 30);
+
+  recorder.apply(sweep_command::Finish{});
+  Snapshot finished = sweeping;
+  finished.illumination = recorder.status();
+  ASSERT_TRUE(wait_for(finished, [](const CameraState& s) { return !s.locked && s.auto_exposure; }));
+  EXPECT_TRUE(app.illumination().camera_hold_rect().empty());
+  EXPECT_EQ(app.notifications().size(), 2u) << "the release is announced";
 }
 
 }  // namespace

@@ -56,7 +56,7 @@ void diamond(ImDrawList* draw, ImVec2 c, float r, ImU32 fill, ImU32 outline) {
 }  // namespace
 
 void IlluminationPanel::draw(const Snapshot& snapshot, const CommandSink& post) {
-  banner_ = plot_ = coverage_map_ = capture_button_ = response_curve_ = hold_button_ = {};
+  banner_ = plot_ = coverage_map_ = capture_button_ = response_curve_ = hold_button_ = camera_hold_rect_ = {};
   marker_.reset();
   const ImVec2 avail = ImGui::GetContentRegionAvail();
   const float recommendation_height = ImGui::GetFrameHeightWithSpacing() + ImGui::GetTextLineHeightWithSpacing();
@@ -316,7 +316,7 @@ void IlluminationPanel::draw_wizard(const IlluminationStatus& status, const Snap
         power_entry_step_ = progress.step;
       }
       ImGui::AlignTextToFramePadding();
-      ImGui::Text("%zu/%zu · lamp at", progress.step + 1, steps);
+      ImGui::Text("Lamp %zu/%zu", progress.step + 1, steps);
       if (ImGui::IsItemHovered()) ImGui::SetTooltip("Set the illuminator to this power, then press Capture");
       ImGui::SameLine();
       ImGui::SetNextItemWidth(ImGui::CalcTextSize("000.0 W").x + 2.0f * ImGui::GetStyle().FramePadding.x);
@@ -330,9 +330,11 @@ void IlluminationPanel::draw_wizard(const IlluminationStatus& status, const Snap
                                        "The lamp is at this power: average the next frames");
       capture_button_ = {ImGui::GetItemRectMin(), ImGui::GetItemRectMax()};
       if (capture) post(command::Sweep{sweep_command::Capture{power_entry_w_}});
-      ImGui::SameLine();
+      // In a narrow strip Skip and Finish go on the next line rather than past the edge.
+      const float spacing = ImGui::GetStyle().ItemSpacing.x;
+      same_line_if_fits(icon_button_width("Skip"), spacing);
       if (icon_button("skip", Icon::Step, "Skip", can_post, "Leave this power out")) post(command::Sweep{sweep_command::Skip{}});
-      ImGui::SameLine();
+      same_line_if_fits(icon_button_width("Finish"), spacing);
       if (icon_button("finish", Icon::Stop, "Finish", can_post, "End the sweep here, keeping the powers captured"))
         post(command::Sweep{sweep_command::Finish{}});
       break;
@@ -346,8 +348,7 @@ void IlluminationPanel::draw_wizard(const IlluminationStatus& status, const Snap
           : progress.settle_remaining > 0
               ? fmt::format("{:g} W · settling, {} frames", power, progress.settle_remaining)
               : fmt::format("{:g} W · {} / {} frames", power, progress.frames_captured, progress.frames_wanted);
-      const float finish_width = ImGui::CalcTextSize("Finish").x + 2.0f * ImGui::GetStyle().FramePadding.x +
-                                 ImGui::GetFontSize() + ImGui::GetStyle().ItemInnerSpacing.x;
+      const float finish_width = icon_button_width("Finish");
       const float fraction = progress.frames_wanted > 0 ? static_cast<float>(progress.frames_captured) /
                                                               static_cast<float>(progress.frames_wanted)
                                                         : 0.0f;
@@ -362,6 +363,16 @@ void IlluminationPanel::draw_wizard(const IlluminationStatus& status, const Snap
         post(command::Sweep{sweep_command::Finish{}});
       break;
     }
+  }
+  const bool sweeping = progress.stage == SweepStage::AwaitingPower || progress.stage == SweepStage::Capturing;
+  if (sweeping && camera_hold_) {
+    const std::string text = "Camera " + *camera_hold_;
+    const bool cut = elided_text(text, colours::text_dim);
+    camera_hold_rect_ = last_item_rect();
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("%s%sA camera's auto exposure would follow the lamp and hide its response; the Camera tab shows "
+                        "the lock.",
+                        cut ? text.c_str() : "", cut ? "\n" : "");
   }
 }
 

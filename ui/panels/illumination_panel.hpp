@@ -3,6 +3,8 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <imgui.h>
@@ -18,7 +20,7 @@ namespace nirslam::ui {
 //   - live metrics (mean grey, RMS contrast, sharpness, power, FAST corners, coverage, evenness)
 //     and a map of the corners per grid cell,
 //   - the sweep wizard: scene type, start, "set the lamp to P W" with the power to confirm,
-//     capture progress, skip, finish,
+//     capture progress, skip, finish, and what the camera's exposure is held at for the sweep,
 //   - the entropy-vs-power plot: measured points (mean, one standard deviation), the fitted
 //     saturating curve, the plateau share, and the recommended power (or the prior's range),
 //   - the recommendation with its confidence; its reasons in the tooltip,
@@ -39,10 +41,13 @@ public:
   const ScreenRect& capture_button_rect() const { return capture_button_; }  // empty unless a power is asked for
   const ScreenRect& response_curve_rect() const { return response_curve_; }  // empty unless a response is shown
   const ScreenRect& hold_button_rect() const { return hold_button_; }
+  const ScreenRect& camera_hold_rect() const { return camera_hold_rect_; }  // empty unless a lock is shown
 
   // Where Hold writes the sweep's response: a new folder response-YYYYmmdd-HHMMSS under `root`
   // (the application passes the sessions folder).
   void set_response_root(const std::filesystem::path& root) { response_root_ = root; }
+  // What the sweep's camera lock holds (SweepCameraLock::holding), shown while the wizard sweeps.
+  void set_camera_hold(std::optional<std::string> hold) { camera_hold_ = std::move(hold); }
   // Where the recommended point was drawn (sweep: on the curve; prior: on the power axis).
   const std::optional<ImVec2>& recommended_marker() const { return marker_; }
 
@@ -62,7 +67,9 @@ private:
   ScreenRect capture_button_;
   ScreenRect response_curve_;
   ScreenRect hold_button_;
+  ScreenRect camera_hold_rect_;
   std::filesystem::path response_root_;
+  std::optional<std::string> camera_hold_;
   std::optional<ImVec2> marker_;
 
   // What the operator is typing: the power to confirm follows the wizard's request until edited.

@@ -33,13 +33,16 @@ public:
   void clear();
   // Keeps `frame` as taken at `power_w` unless kPerPower are kept there already. A frame without
   // a reported exposure cannot serve (the fit needs power x exposure); counted in missing_exposure().
+  // Nor can one that is not an 8- or 16-bit grey image; counted in unusable_images().
   void add(double power_w, const Frame& frame);
   const std::vector<SweepShot>& shots() const { return shots_; }
   int missing_exposure() const { return missing_exposure_; }
+  int unusable_images() const { return unusable_images_; }
 
 private:
   std::vector<SweepShot> shots_;
   int missing_exposure_ = 0;
+  int unusable_images_ = 0;
 };
 
 struct SweepResponse {

@@ -32,6 +32,7 @@ struct CalibrateSweepOptions {
   fs::path out_dir;
   bool green = false;
   int max_valid_grey = 254;
+  int min_valid_grey = 1;
   bool power_sweep = false;
   bool no_ambient = false;
   int viewpoint = 0;
@@ -220,6 +221,7 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
 
   ExposureSweepOptions sweep_options;
   sweep_options.max_valid_grey = options.max_valid_grey;
+  sweep_options.min_valid_grey = options.min_valid_grey;
   const ExposureSweepResult result = options.power_sweep
                                          ? calibrate_power_sweep(images, sweep_frames, !options.no_ambient, sweep_options)
                                          : calibrate_exposure_sweep(images, times, sweep_options);
@@ -251,6 +253,9 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
               result.point_count, result.observation_count, result.residual_rms_grey, result.iterations,
               result.monotonic ? "yes" : "no");
   std::printf("  c = %.6f %.6f %.6f %.6f\n", c[0], c[1], c[2], c[3]);
+  std::printf("  observed grey range: 1 %% of the samples at %.0f or above\n", result.highest_grey);
+  if (const std::string advice = sweep_range_advice(result); !advice.empty())
+    std::printf("  warning: %s\n", advice.c_str());
   std::optional<AmbientShare> ambient;
   if (lamp_off && weakest && result.ok)
     ambient = ambient_share(images[*lamp_off], sweep_frames[*lamp_off].exposure, images[*weakest],
@@ -299,6 +304,7 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
          result.ambient_modelled ? nlohmann::json(result.ambient_share_at_weakest) : nlohmann::json(nullptr)},
         {"reference_image", files[static_cast<std::size_t>(result.reference_image)].filename().string()},
         {"residual_rms_grey", result.residual_rms_grey},
+        {"highest_grey", result.highest_grey},
         {"points", result.point_count},
         {"observations", result.observation_count},
         {"images", images_json}};
@@ -339,6 +345,8 @@ void add_calibrate_sweep_command(CLI::App& parent, CommandAction& action) {
                 "Power sweep: no ambient term (the lamp the only light; lamp-off images are then only checked)");
   cmd->add_option("--viewpoint", options->viewpoint, "Power sweep: which viewpoint's images to use")->capture_default_str();
   cmd->add_flag("--green", options->green, "Use the green channel of colour images instead of the grey conversion");
+  cmd->add_option("--min-valid", options->min_valid_grey, "Smallest grey value counted as unclipped (default 1)")
+      ->check(CLI::Range(1, 254));
   cmd->add_option("--max-valid", options->max_valid_grey, "Largest grey value counted as unclipped (default 254)")
       ->check(CLI::Range(2, 255));
   cmd->callback([options, &action] { action = [options] { return run_calibrate_sweep(*options); }; });

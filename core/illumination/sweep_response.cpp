@@ -80,9 +80,12 @@ SweepResponse fit_sweep_response(const std::vector<SweepShot>& shots) {
   out.powers_w = lit;
   out.ambient_share_at_weakest = fit.ambient_share_at_weakest;
   if (fit.weakest_image >= 0) out.weakest_power_w = shots[static_cast<std::size_t>(fit.weakest_image)].power_w;
+  out.highest_grey = fit.highest_grey;
   if (out.residual_rms_grey > kSweepResponseMaxResidualGrey)
     out.warning = fmt::format("residual {:.1f} grey levels: did the rig or the scene move, or the exposure not hold?",
                               out.residual_rms_grey);
+  else
+    out.warning = sweep_range_advice(fit);
   return out;
 }
 
@@ -98,6 +101,7 @@ void write_sweep_response(const SweepResponse& response, const std::filesystem::
       {"images", response.images},
       {"points", response.points},
       {"residual_rms_grey", response.residual_rms_grey},
+      {"highest_grey", response.highest_grey},
       {"ambient_share_at_lowest_power", response.ambient_share_at_weakest},
       {"lowest_power_w", response.weakest_power_w},
       {"warning", response.warning}};

@@ -552,6 +552,14 @@ ExposureSweepResult fit_sweep(const std::vector<cv::Mat>& images, const SweepExp
                                     grey_span, ratio, kMinGreySpan, kMinIrradianceRatio));
   }
 
+  {
+    std::vector<double> greys;
+    greys.reserve(observations.size());
+    for (const Observation& o : observations) greys.push_back(o.grey);
+    const auto top = greys.begin() + static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(greys.size() - 1));
+    std::nth_element(greys.begin(), top, greys.end());
+    result.highest_grey = 255.0 * *top;
+  }
   const ResponseModel estimate(c);
   result.monotonic = estimate.is_monotonic();
   result.residual_rms_grey = rms;
@@ -590,6 +598,14 @@ ExposureSweepResult fit_sweep(const std::vector<cv::Mat>& images, const SweepExp
 }
 
 }  // namespace
+
+std::string sweep_range_advice(const ExposureSweepResult& result) {
+  if (!result.ok || result.highest_grey >= kSweepAdvisedHighestGrey) return {};
+  return fmt::format("the sweep's images reach grey {:.0f} at most (1 % of the samples): above it the response is "
+                     "extrapolated and its scale with it; sweep with a longer exposure or more gain, so that the "
+                     "strongest setting nearly saturates the brightest surfaces",
+                     result.highest_grey);
+}
 
 ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,
                                              const std::optional<std::vector<double>>& exposure_times,

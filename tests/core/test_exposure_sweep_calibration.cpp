@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -282,7 +283,7 @@ TEST(ExposureSweep, DegenerateInputKeepsPriorAndSaysWhy) {
 // lamp radiance R log-uniform in [0.03, 1] and A / R log-uniform in [0.02, 1]. The noise as in
 // render_sweep.
 std::vector<cv::Mat> render_power_sweep(const ResponseModel& response, const std::vector<double>& powers,
-                                        double noise_grey, unsigned seed) {
+                                        double noise_grey, unsigned seed, double exposure = 1.0) {
   constexpr int kWidth = 256, kHeight = 192, kPatch = 8;
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> log_r(std::log(0.03), std::log(1.0));
@@ -299,7 +300,8 @@ std::vector<cv::Mat> render_power_sweep(const ResponseModel& response, const std
     cv::Mat image(kHeight, kWidth, CV_8UC1);
     for (int r = 0; r < kHeight; ++r)
       for (int c = 0; c < kWidth; ++c) {
-        const double X = power * lamp.at<double>(r / kPatch, c / kPatch) + ambient.at<double>(r / kPatch, c / kPatch);
+        const double X =
+            exposure * (power * lamp.at<double>(r / kPatch, c / kPatch) + ambient.at<double>(r / kPatch, c / kPatch));
         const double grey = 255.0 * response(X) + noise(rng);
         image.at<unsigned char>(r, c) = static_cast<unsigned char>(std::clamp(std::lround(grey), 0L, 255L));
       }
@@ -382,6 +384,46 @@ TEST(PowerSweep, AmbientTermRecoversTheResponseUnderAmbientLight) {
               alone.ambient_share_at_weakest);
   EXPECT_LT(error_alone, 1.5);
   EXPECT_LT(std::abs(alone.ambient_share_at_weakest), 0.05);
+}
+
+// A sweep whose images stop short of the top fits the response exactly up to where they stop,
+// but its scale (f(1) = 1) rests on the basis's continuation above: it says so and how to sweep.
+TEST(PowerSweep, ImagesThatStopShortOfTheTopAreSaidToBeExtrapolated) {
+  const std::vector<double> powers_w = {5.0, 10.0, 20.0, 40.0, 65.0, 100.0, 150.0};
+  std::vector<double> relative;
+  for (double p : powers_w) relative.push_back(0.5 * p / 150.0);
+  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
+  const std::vector<double> truth_table = truth.inverse_table();
+  const auto mean_error = [&](const ResponseModel& estimate) {
+    const std::vector<double> table = estimate.inverse_table();
+    double sum = 0.0;
+    for (std::size_t k = 0; k < table.size(); ++k) sum += std::abs(table[k] - truth_table[k]);
+    return sum / static_cast<double>(table.size());
+  };
+  double error[2] = {0.0, 0.0};
+  for (const int bright : {0, 1}) {
+    // The same scene at 1/8 of the exposure, or at the exposure that nearly saturates it.
+    const double exposure = bright ? 1.0 : 0.125;
+    std::vector<PowerSweepFrame> frames;
+    for (double p : powers_w) frames.push_back({p, 8.0 * exposure});
+    const auto images = render_power_sweep(truth, relative, 0.7, 29, exposure);
+    const ExposureSweepResult fit = calibrate_power_sweep(images, frames, true);
+    ASSERT_TRUE(fit.ok) << fit.reason;
+    error[bright] = mean_error(fit.response);
+    std::printf("power sweep at exposure %.3f: samples reach grey %.0f, response %.2f grey levels mean error\n",
+                exposure, fit.highest_grey, error[bright]);
+    if (bright) {
+      EXPECT_GT(fit.highest_grey, kSweepAdvisedHighestGrey);
+      EXPECT_TRUE(sweep_range_advice(fit).empty()) << sweep_range_advice(fit);
+    } else {
+      EXPECT_LT(fit.highest_grey, kSweepAdvisedHighestGrey);
+      const std::string advice = sweep_range_advice(fit);
+      EXPECT_NE(advice.find(fmt::format("grey {:.0f} at most", fit.highest_grey)), std::string::npos) << advice;
+      EXPECT_NE(advice.find("longer exposure"), std::string::npos) << advice;
+    }
+  }
+  EXPECT_LT(error[1], 1.0);
+  EXPECT_GT(error[0], 2.0);  // measured 5.2 (0.05 with the top reached)
 }
 
 TEST(PowerSweep, BadPowersOrExposuresKeepThePriorAndSayWhy) {

@@ -446,12 +446,16 @@ void IlluminationPanel::draw_sweep_response(const SweepResponse& response, const
   ImGui::TextColored(to_vec4(response.warning.empty() ? colours::text : colours::banner_dark), "%s", figures.c_str());
   if (ImGui::IsItemHovered()) {
     const std::string detail = fmt::format(
-        "residual {:.2f} grey levels rms over {} frames at {} powers ({} points)\nambient light: {:.1f} % of the lamp's "
-        "irradiance at {:g} W (median over the points){}",
-        response.residual_rms_grey, response.images, response.powers_w.size(), response.points,
+        "residual {:.2f} grey levels rms over {} frames at {} powers ({} points), grey levels up to {:.0f}\nambient "
+        "light: {:.1f} % of the lamp's irradiance at {:g} W (median over the points){}",
+        response.residual_rms_grey, response.images, response.powers_w.size(), response.points, response.highest_grey,
         100.0 * response.ambient_share_at_weakest, response.weakest_power_w,
         response.warning.empty() ? std::string() : "\n" + response.warning);
-    ImGui::SetTooltip("%s", detail.c_str());
+    ImGui::BeginTooltip();
+    ImGui::PushTextWrapPos(ImGui::GetFontSize() * 36.0f);
+    ImGui::TextUnformatted(detail.c_str());
+    ImGui::PopTextWrapPos();
+    ImGui::EndTooltip();
   }
 }
 

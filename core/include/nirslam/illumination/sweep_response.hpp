@@ -49,9 +49,10 @@ struct SweepResponse {
   enum class State { Fitting, Done, Failed };
   State state = State::Fitting;
   std::string reason;   // Failed: why (too few powers, no exposure reported, the fit's reason)
-  std::string warning;  // Done, but doubtful: a residual that says the rig moved
+  std::string warning;  // Done, but doubtful: a residual that says the rig moved, images that stop short of the top
   ResponseModel response;
   double residual_rms_grey = 0.0;
+  double highest_grey = 0.0;  // ExposureSweepResult::highest_grey: the top of the observed range
   int images = 0;  // fitted
   int points = 0;
   std::vector<double> powers_w;             // distinct powers fitted, ascending

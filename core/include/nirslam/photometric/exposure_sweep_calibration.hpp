@@ -94,12 +94,25 @@ struct ExposureSweepResult {
   int observation_count = 0;
   int iterations = 0;
   bool monotonic = true;
+  // The grey level (0..255) that 1 % of the fitted observations reach or exceed: above it the
+  // response is the basis's continuation, not the data's. With known exposures the fit is exact up
+  // to there but the normalisation f(1) = 1 then sets its scale by that continuation (the simulated
+  // street's power sweep at 4 ms: observations up to 120, 0.01 grey levels modulo the scale there,
+  // 2.6 over all levels; at 12 ms 0.2).
+  double highest_grey = 0.0;
   // Power sweep with the ambient term: the median over the points of the ambient irradiance
   // over the lamp's at the weakest lit image (weakest_image).
   bool ambient_modelled = false;
   double ambient_share_at_weakest = 0.0;
   int weakest_image = -1;
 };
+
+// Below this highest_grey a fitted response is advised against as over all levels (measured on
+// simulated power sweeps, gamma: 101 -> 2.6 grey levels mean error, 138-157 -> 0.2-1.2, 166-241
+// -> 0.01-0.2).
+inline constexpr double kSweepAdvisedHighestGrey = 180.0;
+// What to do when the sweep's observations stop short of the top (empty when they do not).
+std::string sweep_range_advice(const ExposureSweepResult& result);
 
 // `images`: 8-bit single-channel images of one size. `exposure_times`: one positive time per image
 // (any unit), or nothing to estimate the exposures too.

@@ -599,12 +599,21 @@ ExposureSweepResult fit_sweep(const std::vector<cv::Mat>& images, const SweepExp
 
 }  // namespace
 
+double sweep_exposure_factor(const ExposureSweepResult& result) {
+  if (!result.ok || !(result.highest_grey > 0.0) || result.highest_grey >= kSweepAdvisedHighestGrey) return 1.0;
+  // Through the fitted response: exact up to highest_grey, its continuation (a few per cent off at
+  // most on the simulated sweeps) from there to the target.
+  const double now = result.response.inverse(result.highest_grey / 255.0);
+  const double wanted = result.response.inverse(kSweepTargetHighestGrey / 255.0);
+  return now > 0.0 && wanted > now ? wanted / now : 1.0;
+}
+
 std::string sweep_range_advice(const ExposureSweepResult& result) {
   if (!result.ok || result.highest_grey >= kSweepAdvisedHighestGrey) return {};
   return fmt::format("the sweep's images reach grey {:.0f} at most (1 % of the samples): above it the response is "
-                     "extrapolated and its scale with it; sweep with a longer exposure or more gain, so that the "
-                     "strongest setting nearly saturates the brightest surfaces",
-                     result.highest_grey);
+                     "extrapolated and its scale with it; sweep again with about {:.1f}x the exposure or gain, so that "
+                     "the strongest setting takes the brightest surfaces near grey {:.0f}",
+                     result.highest_grey, sweep_exposure_factor(result), kSweepTargetHighestGrey);
 }
 
 ExposureSweepResult calibrate_exposure_sweep(const std::vector<cv::Mat>& images,

@@ -234,6 +234,15 @@ void Application::draw_camera_tab() {
   camera_.draw(controls->state(), controls.get());
 }
 
+bool Application::select_tab(std::string_view name) {
+  for (const auto& [tab, tab_name] : kTabNames)
+    if (name == tab_name) {
+      select_tab(tab);
+      return true;
+    }
+  return false;
+}
+
 void Application::apply(const UiPreferences& p) {
   feed_.show_corrected = p.feed_corrected;
   feed_.highlight_clipping = p.feed_clipping;
@@ -248,8 +257,7 @@ void Application::apply(const UiPreferences& p) {
   session_.set_recorded_speed(p.recorded_speed);
   recording_.set_sessions_folder(p.sessions_folder);
   select_tab(StripTab::Illumination);
-  for (const auto& [tab, name] : kTabNames)
-    if (p.strip_tab == name) select_tab(tab);
+  select_tab(p.strip_tab);
   if (post_) {
     // Only a mode the operator picked overrides the config's.
     controls_.chosen_pipeline_mode = p.chosen_pipeline_mode;

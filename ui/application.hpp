@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <optional>
+#include <string_view>
 #include <utility>
 
 #include <imgui.h>
@@ -93,6 +94,8 @@ public:
   enum class StripTab { Illumination, Photometric, Session, Record, Camera };
   // The tab to bring to the front on the next draw (the tab bar remembers the operator's choice).
   void select_tab(StripTab tab) { requested_tab_ = tab; }
+  // By the name the settings and `gui --tab` use ("illumination", ..., "camera"); false if unknown.
+  bool select_tab(std::string_view name);
   StripTab current_tab() const { return current_tab_; }
 
 private:

@@ -266,9 +266,9 @@ void add_gui_command(CLI::App& parent, CommandAction& action) {
       ->check(CLI::Validator(check_size, "WxH"));
   gui->add_flag("--fast", options->fast, "Windowed: process frames as fast as possible instead of at recorded speed");
   gui->add_option("--tab", options->tab,
-                  "The tab shown first under the feed: illumination, photometric or session (default: the last one "
-                  "of a window, else illumination)")
-      ->check(CLI::IsMember({"illumination", "photometric", "session"}));
+                  "The tab shown first under the feed: illumination, photometric, session, record or camera "
+                  "(default: the last one of a window, else illumination)")
+      ->check(CLI::IsMember({"illumination", "photometric", "session", "record", "camera"}));
   gui->add_flag("--loop", options->loop, "Restart the source at its end (built-in sequences always loop in a window)");
   gui->add_flag("--no-settings", options->no_settings,
                 "Windowed: ignore the saved settings (last source, views, window) and do not save them "

@@ -109,8 +109,7 @@ SourceFactory source_factory_from_argument(const std::string& argument, CameraCo
   if (!on_open) return make;
   return [make = std::move(make), on_open = std::move(on_open)]() -> std::unique_ptr<Source> {
     std::unique_ptr<Source> source = make();
-    const auto* camera = dynamic_cast<const V4l2Source*>(source.get());
-    on_open(camera != nullptr ? camera->controls() : nullptr);
+    on_open(source->camera_controls());
     return source;
   };
 }

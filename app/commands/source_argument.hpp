@@ -19,9 +19,9 @@ SourceFactory source_factory_from_argument(const std::string& argument);
 // Whether the argument names one of the built-in sequences rather than a dataset.
 bool is_built_in_sequence(const std::string& argument);
 
-// Called on the worker thread with the controls of every V4L2 camera a factory from
-// source_factory_from_argument opens (nullptr when a source without camera controls opens), so
-// the GUI's camera panel can drive the camera the worker streams from.
+// Called on the worker thread with the camera controls of every source a factory from
+// source_factory_from_argument opens (a V4L2 camera's, the simulator's; nullptr when a source
+// without them opens), so the GUI's camera panel can drive the camera the worker streams from.
 using CameraControlsSink = std::function<void(std::shared_ptr<CameraControls>)>;
 SourceFactory source_factory_from_argument(const std::string& argument, CameraControlsSink on_open);
 

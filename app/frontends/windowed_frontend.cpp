@@ -96,9 +96,7 @@ void run_windowed(Worker& worker, const WindowedOptions& options) {
   GlfwPlatform platform(window.get());
   ui::Application app(ui::gl::find_shader_dir(), [&worker](Command c) { worker.post(std::move(c)); });
   if (options.preferences != nullptr) app.apply(*options.preferences);
-  if (options.tab == "photometric") app.select_tab(ui::Application::StripTab::Photometric);
-  if (options.tab == "session") app.select_tab(ui::Application::StripTab::Session);
-  if (options.tab == "illumination") app.select_tab(ui::Application::StripTab::Illumination);
+  if (!options.tab.empty()) app.select_tab(options.tab);
   app.set_session_actions(options.session_actions);
   if (!options.current_source.empty()) app.session().set_current(options.current_source);
   for (const std::string& warning : options.startup_warnings)

@@ -14,6 +14,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "nirslam/capture/control_hub.hpp"
 #include "nirslam/capture/emulated_uvc.hpp"
 #include "nirslam/capture/v4l2_camera.hpp"
 #include "nirslam/capture/v4l2_io.hpp"
@@ -27,12 +28,6 @@ using Clock = std::chrono::steady_clock;
 constexpr double kExposureUnitMs = 0.1;  // V4L2_CID_EXPOSURE_ABSOLUTE counts 100 us
 constexpr int kCaptureWaitMs = 50;       // poll timeout: how soon the capture thread sees a stop or a control
 
-std::string number_text(double value) {
-  std::ostringstream out;
-  out << value;
-  return out.str();
-}
-
 ControlRange range_of(const std::optional<ControlInfo>& control, double scale) {
   ControlRange r;
   if (!control) return r;
@@ -44,93 +39,6 @@ ControlRange range_of(const std::optional<ControlInfo>& control, double scale) {
   return r;
 }
 
-// Operator changes waiting for the capture thread, which alone talks to the device.
-struct PendingControls {
-  std::optional<double> exposure_ms;
-  std::optional<double> gain;
-  std::optional<bool> auto_exposure;
-  std::optional<double> fps;
-  std::optional<bool> locked;
-  bool any() const { return exposure_ms || gain || auto_exposure || fps || locked; }
-};
-
-// The state the GUI reads and the controls it writes: shared between the source's capture thread,
-// its consumer and the GUI, all under one lock.
-class ControlHub final : public CameraControls {
-public:
-  explicit ControlHub(std::string device) { state_.device = std::move(device); }
-
-  CameraState state() const override {
-    const std::lock_guard lock(mutex_);
-    return state_;
-  }
-  void set_exposure_ms(double exposure_ms) override {
-    const std::lock_guard lock(mutex_);
-    check_unlocked("exposure_ms");
-    check_range("exposure_ms", exposure_ms, state_.exposure_ms, " ms");
-    pending_.exposure_ms = exposure_ms;
-    if (state_.auto_exposure) pending_.auto_exposure = false;  // a manual exposure ends auto exposure
-  }
-  void set_gain(double gain) override {
-    const std::lock_guard lock(mutex_);
-    check_unlocked("gain");
-    check_range("gain", gain, state_.gain, "");
-    pending_.gain = gain;
-  }
-  void set_auto_exposure(bool on) override {
-    const std::lock_guard lock(mutex_);
-    if (on) check_unlocked("auto_exposure");
-    if (!state_.auto_exposure_available) throw InputError(state_.device, "auto_exposure", "the device has no auto exposure control");
-    pending_.auto_exposure = on;
-  }
-  void set_frame_rate(double fps) override {
-    const std::lock_guard lock(mutex_);
-    if (!(fps > 0.0) || !std::isfinite(fps)) throw InputError(state_.device, "fps", "frame rate must be positive");
-    if (state_.fps_range.available)
-      check_range("fps", fps, state_.fps_range, " fps");
-    pending_.fps = fps;
-  }
-  void set_locked(bool locked) override {
-    const std::lock_guard lock(mutex_);
-    pending_.locked = locked;
-  }
-
-  // Capture thread side.
-  PendingControls take_pending() {
-    const std::lock_guard lock(mutex_);
-    PendingControls p = pending_;
-    pending_ = {};
-    return p;
-  }
-  template <typename F>
-  void update(F&& change) {
-    const std::lock_guard lock(mutex_);
-    change(state_);
-  }
-  // Range check for the values a source string asks for, before the thread starts.
-  void check(const std::string& field, double value, bool exposure) const {
-    const std::lock_guard lock(mutex_);
-    check_range(field, value, exposure ? state_.exposure_ms : state_.gain, exposure ? " ms" : "");
-  }
-
-private:
-  // As of the changes already asked for: "unlock, then turn auto exposure back on" is one step.
-  void check_unlocked(const char* field) const {
-    if (pending_.locked.value_or(state_.locked)) throw InputError(state_.device, field, "exposure and gain are locked; unlock them first");
-  }
-  void check_range(const std::string& field, double value, const ControlRange& range, const char* unit) const {
-    if (!range.available) throw InputError(state_.device, field, "the device has no such control");
-    const double slack = 1e-9 * std::max(1.0, std::abs(range.maximum));
-    if (!std::isfinite(value) || value < range.minimum - slack || value > range.maximum + slack)
-      throw InputError(state_.device, field, number_text(value) + unit + " is outside the device's range " +
-                                                 number_text(range.minimum) + ".." + number_text(range.maximum) + unit);
-  }
-
-  mutable std::mutex mutex_;
-  CameraState state_;
-  PendingControls pending_;
-};
-
 struct QueuedFrame {
   Frame frame;
   cv::Mat right;
@@ -139,7 +47,7 @@ struct QueuedFrame {
 class V4l2SourceImpl final : public V4l2Source {
 public:
   V4l2SourceImpl(const V4l2SourceSpec& spec, std::shared_ptr<V4l2Io> io)
-      : spec_(spec), io_(std::move(io)), hub_(std::make_shared<ControlHub>(spec.device)) {
+      : spec_(spec), io_(std::move(io)), hub_(std::make_shared<CameraControlHub>(spec.device)) {
     if (spec_.queue_capacity < 1) throw InputError(spec_.device, "queue", "the frame queue needs room for one frame");
     open_and_start();
     describe();
@@ -304,7 +212,7 @@ private:
   void apply_initial_controls() {
     if (spec_.exposure_ms) hub_->check("exposure_ms", *spec_.exposure_ms, true);
     if (spec_.gain) hub_->check("gain", *spec_.gain, false);
-    PendingControls initial;
+    PendingCameraControls initial;
     initial.auto_exposure = spec_.auto_exposure;
     if (spec_.exposure_ms) initial.auto_exposure = false;
     initial.exposure_ms = spec_.exposure_ms;
@@ -314,7 +222,7 @@ private:
   }
 
   // Runs on the capture thread (or before it starts): the device is only ever touched by one thread.
-  void apply(const PendingControls& p) {
+  void apply(const PendingCameraControls& p) {
     if (p.fps) {
       // UVC cameras take a new rate only while stopped: stop, renegotiate, restart.
       camera_->stop();
@@ -383,7 +291,7 @@ private:
         continue;
       }
       try {
-        const PendingControls pending = hub_->take_pending();
+        const PendingCameraControls pending = hub_->take_pending();
         if (pending.any()) {
           try {
             apply(pending);
@@ -525,7 +433,7 @@ private:
 
   V4l2SourceSpec spec_;  // the capture thread updates the controls in effect, for a reconnect
   std::shared_ptr<V4l2Io> io_;
-  std::shared_ptr<ControlHub> hub_;
+  std::shared_ptr<CameraControlHub> hub_;
   SourceInfo info_;
   std::unique_ptr<V4l2Camera> camera_;  // owned by the capture thread while it runs
   std::optional<ControlInfo> exposure_control_, gain_control_, auto_control_;

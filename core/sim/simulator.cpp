@@ -1,6 +1,7 @@
 #include "nirslam/sim/simulator.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -149,6 +150,13 @@ void Simulator::rewind() {
                             std::min(options_.max_exposure_ms, 1000.0 / options_.fps));
   if (options_.exposure_mode == ExposureMode::Fixed) exposure_ms_ = options_.exposure_ms;
   gain_ = 1.0;
+  exposure_mode_ = options_.exposure_mode;
+}
+
+void Simulator::set_exposure(ExposureMode mode, double exposure_ms, double gain) {
+  exposure_mode_ = mode;
+  exposure_ms_ = exposure_ms;
+  gain_ = gain;
 }
 
 void Simulator::render_radiance(double t, double exposure_ms, double power_w, cv::Mat& radiance, cv::Mat* depth) const {
@@ -283,7 +291,7 @@ std::optional<SimulatedFrame> Simulator::next(bool with_depth) {
   std::snprintf(name, sizeof name, "sim-%s/%05lld", std::string(to_string(options_.scene)).c_str(), static_cast<long long>(i));
   out.frame.name = name;
   out.T_world_cam = trajectory_.pose(t);
-  if (options_.exposure_mode == ExposureMode::Auto)
+  if (exposure_mode_ == ExposureMode::Auto)
     std::tie(exposure_ms_, gain_) = auto_exposure_step(exposure_ms_, gain_, out.mean_grey, i);
   ++index_;
   return out;
@@ -312,6 +320,58 @@ SimulatedSource::SimulatedSource(const SimulatorOptions& options) : simulator_(o
   lamp.description = "the simulator's illuminator";
   lamp.reads_back = true;
   lamp_ = std::make_shared<ManualIlluminator>(lamp);
+
+  controls_ = std::make_shared<CameraControlHub>("sim:" + info_.scene_type);
+  controls_->fix_frame_rate("the simulated camera's frame rate is its sequence's");
+  controls_->update([&](CameraState& c) {
+    c.card = "simulated NIR camera";
+    c.width = o.width;
+    c.height = o.height;
+    c.bit_depth = o.bit_depth;
+    c.format = std::string(o.bit_depth == 16 ? "Y16 " : "GREY ") + std::to_string(o.width) + "x" + std::to_string(o.height);
+    c.fps = o.fps;
+    c.rates_fps = {o.fps};
+    c.connection = CameraConnection::Streaming;
+    c.exposure_ms = {true, o.min_exposure_ms, std::min(o.max_exposure_ms, 1000.0 / o.fps), 0.0, o.exposure_ms};
+    c.gain = {o.max_gain > 1.0, 1.0, o.max_gain, 0.0, 1.0};
+    c.gain_unity = 1.0;
+    c.auto_exposure_available = true;
+    c.auto_exposure = o.exposure_mode == ExposureMode::Auto;
+  });
+}
+
+// The controls' changes, as a camera's driver would take them before the next frame; a lock holds
+// what is in effect.
+void SimulatedSource::apply_camera_controls() {
+  const PendingCameraControls p = controls_->take_pending();
+  if (!p.any()) return;
+  ExposureMode mode = simulator_.current_exposure_mode();
+  double exposure_ms = simulator_.current_exposure_ms();
+  double gain = simulator_.current_gain();
+  if (p.auto_exposure) mode = *p.auto_exposure ? ExposureMode::Auto : ExposureMode::Fixed;
+  if (p.locked && *p.locked) mode = ExposureMode::Fixed;
+  if (p.exposure_ms) {
+    mode = ExposureMode::Fixed;
+    exposure_ms = *p.exposure_ms;
+  }
+  if (p.gain) gain = *p.gain;
+  simulator_.set_exposure(mode, exposure_ms, gain);
+  controls_->update([&](CameraState& c) {
+    c.auto_exposure = mode == ExposureMode::Auto;
+    if (p.locked) c.locked = *p.locked;
+  });
+}
+
+void SimulatedSource::rewind() {
+  simulator_.rewind();
+  // The operator's settings outlast a rewind, as a camera's do: held values stay held.
+  const CameraState c = controls_->state();
+  if (!c.auto_exposure && c.exposure_in_effect_ms)
+    simulator_.set_exposure(ExposureMode::Fixed, *c.exposure_in_effect_ms, c.gain_in_effect.value_or(1.0));
+  else if (c.auto_exposure)
+    simulator_.set_exposure(ExposureMode::Auto, simulator_.current_exposure_ms(), simulator_.current_gain());
+  controls_->update([](CameraState& s) { s.connection = CameraConnection::Streaming; });
+  last_frame_at_.reset();
 }
 
 std::optional<PhotometricTruth> SimulatedSource::photometric_truth() const {
@@ -325,8 +385,22 @@ std::optional<PhotometricTruth> SimulatedSource::photometric_truth() const {
 
 std::optional<Frame> SimulatedSource::next() {
   if (const auto power_w = lamp_->current_power_w()) simulator_.set_power(*power_w);
+  apply_camera_controls();
   std::optional<SimulatedFrame> f = simulator_.next(false);
-  if (!f) return std::nullopt;
+  if (!f) {
+    controls_->update([](CameraState& c) { c.connection = CameraConnection::Stopped; });
+    return std::nullopt;
+  }
+  // The rate frames are taken at: the worker's pace (recorded speed or as fast as it can).
+  const auto now = std::chrono::steady_clock::now();
+  const double dt = last_frame_at_ ? std::chrono::duration<double>(now - *last_frame_at_).count() : 0.0;
+  last_frame_at_ = now;
+  controls_->update([&](CameraState& c) {
+    c.exposure_in_effect_ms = f->frame.exposure_ms;
+    c.gain_in_effect = f->frame.gain;
+    ++c.frames_captured;
+    if (dt > 0.0) c.measured_fps = c.measured_fps > 0.0 ? 0.9 * c.measured_fps + 0.1 / dt : 1.0 / dt;
+  });
   last_pose_ = f->T_world_cam;
   f->frame.T_world_cam_truth = f->T_world_cam;
   return std::move(f->frame);

@@ -32,6 +32,9 @@ public:
   std::string end_reason() const override { return delivered_ >= max_frames_ ? std::string() : inner_->end_reason(); }
   std::int64_t frames_dropped() const override { return inner_->frames_dropped(); }
   std::shared_ptr<const CameraModel> camera() const override { return inner_->camera(); }
+  std::shared_ptr<IlluminatorController> illuminator() const override { return inner_->illuminator(); }
+  std::shared_ptr<CameraControls> camera_controls() const override { return inner_->camera_controls(); }
+  std::optional<PhotometricTruth> photometric_truth() const override { return inner_->photometric_truth(); }
 
 private:
   std::unique_ptr<Source> inner_;

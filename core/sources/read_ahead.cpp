@@ -149,7 +149,8 @@ private:
 
 std::unique_ptr<Source> read_ahead(std::unique_ptr<Source> source, std::size_t depth) {
   if (!source) throw std::invalid_argument("read_ahead: no source");
-  if (depth == 0 || source->info().live || source->illuminator() != nullptr) return source;
+  if (depth == 0 || source->info().live || source->illuminator() != nullptr || source->camera_controls() != nullptr)
+    return source;
   return std::make_unique<ReadAhead>(std::move(source), depth);
 }
 

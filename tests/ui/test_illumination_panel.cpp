@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <thread>
 #include <variant>
 #include <vector>
@@ -394,6 +395,80 @@ TEST_F(IlluminationPanelTest, TheWindowLocksTheCamerasAutoExposureWhileTheWizard
   ASSERT_TRUE(wait_for(finished, [](const CameraState& s) { return !s.locked && s.auto_exposure; }));
   EXPECT_TRUE(app.illumination().camera_hold_rect().empty());
   EXPECT_EQ(app.notifications().size(), 2u) << "the release is announced";
+}
+
+// The simulated rig under its own auto exposure: the window locks the simulator's camera while the
+// wizard sweeps and gives its auto exposure back after; the response comes out right (measured
+// 0.08 grey levels). Without the window the auto exposure follows the lamp, and as the simulator
+// reports each frame's exposure exactly the fit still holds (0.19): the lock is for cameras whose
+// reported exposure is not the frame's, and for keeping the images' grey range wide.
+TEST_F(IlluminationPanelTest, TheWindowLocksTheSimulatorsCameraForTheSweepAndGivesItBack) {
+  SimulatorOptions sim = nirslam::testing::still_rig();
+  sim.exposure_mode = ExposureMode::Auto;
+  const std::vector<double> powers = {0, 5, 10, 20, 40, 65, 100, 150};
+  double mean_error[2] = {0.0, 0.0};
+  for (const bool with_window : {true, false}) {
+    WorkerOptions options{.pacing = Pacing::AsFastAsPossible, .loop = true};
+    options.pipeline.mode = PipelineMode::Quality;
+    options.illumination = shipped_config();
+    options.illumination.sweep.settle_frames = 20;  // time for the auto exposure to settle at each power
+    Worker worker(options);
+    std::mutex mutex;
+    std::shared_ptr<CameraControls> controls;
+    worker.post(command::SetSource{[&] {
+      auto source = make_simulated_source(sim);
+      const std::lock_guard lock(mutex);
+      controls = source->camera_controls();
+      return source;
+    }});
+    worker.post(command::Start{});
+    ui_.reset();
+    ui_ = std::make_unique<OffscreenUi>(1280, 800);
+    Application app(gl::find_shader_dir(), [](Command) {});
+    SessionActions actions;
+    actions.camera_controls = [&] {
+      const std::lock_guard lock(mutex);
+      return controls;
+    };
+    app.set_session_actions(actions);
+    // The window's frame loop, as far as the sweep needs it: the latest snapshot drawn.
+    const auto draw = [&] {
+      if (with_window) ui_->frame([&] { app.draw(*worker.snapshot()); });
+    };
+    worker.post(command::Sweep{sweep_command::Start{powers, 2}});
+    for (const double power : powers) {
+      const auto asked = worker.wait_for(
+          [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 20s);
+      ASSERT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
+      draw();
+      if (with_window) {
+        const std::lock_guard lock(mutex);
+        ASSERT_TRUE(controls && controls->state().locked) << "locked once the wizard asks for a power";
+      }
+      worker.post(command::Sweep{sweep_command::Capture{power}});
+    }
+    const auto fitted = worker.wait_for(
+        [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state != SweepResponse::State::Fitting; },
+        60s);
+    draw();
+    worker.post(command::Pause{});
+    ASSERT_TRUE(fitted->sweep_response);
+    const SweepResponse& response = *fitted->sweep_response;
+    if (response.state == SweepResponse::State::Done) {
+      const std::vector<double> G = response.response.inverse_table(256), G_true = sim.response.inverse_table(256);
+      for (std::size_t i = 0; i < 256; ++i) mean_error[with_window] += std::abs(G[i] - G_true[i]) / 256.0;
+    }
+    std::printf("sweep under auto exposure, %s: %s, %.2f grey levels mean error, top grey %.0f %s\n",
+                with_window ? "the window's lock" : "no lock", to_string(response.state), mean_error[with_window],
+                response.highest_grey, response.reason.c_str());
+    EXPECT_EQ(response.state, SweepResponse::State::Done) << response.reason;
+    EXPECT_LT(mean_error[with_window], with_window ? 0.5 : 2.0);
+    if (with_window) {
+      const std::lock_guard lock(mutex);
+      EXPECT_FALSE(controls->state().locked) << "given back after the sweep";
+      EXPECT_TRUE(controls->state().auto_exposure);
+    }
+  }
 }
 
 }  // namespace

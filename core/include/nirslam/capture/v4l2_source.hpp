@@ -60,6 +60,7 @@ class V4l2Source : public Source {
 public:
   // The controls the GUI and worker drive; shared so they outlive a source being replaced.
   virtual std::shared_ptr<CameraControls> controls() const = 0;
+  std::shared_ptr<CameraControls> camera_controls() const override { return controls(); }
   // The right half of the last frame next() returned, for a side-by-side stereo camera.
   virtual std::optional<cv::Mat> last_right_image() const = 0;
 };

@@ -33,6 +33,7 @@
 // than texture_footprint_m (beyond about texture_footprint_m * fx metres at normal incidence, or
 // at grazing angles) alias with supersampling 1.
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -43,6 +44,7 @@
 #include <opencv2/core/mat.hpp>
 
 #include "nirslam/camera/camera_model.hpp"
+#include "nirslam/capture/control_hub.hpp"
 #include "nirslam/geometry/se3.hpp"
 #include "nirslam/illumination/illuminator.hpp"
 #include "nirslam/image/frame.hpp"
@@ -145,6 +147,10 @@ public:
   void rewind();
   double current_exposure_ms() const { return exposure_ms_; }
   double current_gain() const { return gain_; }
+  ExposureMode current_exposure_mode() const { return exposure_mode_; }
+  // From the next frame on: auto exposure from the current values, or these held (a camera's
+  // controls: SimulatedSource). rewind() goes back to the options' mode and start.
+  void set_exposure(ExposureMode mode, double exposure_ms, double gain);
 
   // Renders the radiance at `pose` (with motion blur over exposure_ms when enabled).
   void render_radiance(double t, double exposure_ms, double power_w, cv::Mat& radiance, cv::Mat* depth = nullptr) const;
@@ -179,6 +185,7 @@ private:
   std::int64_t index_ = 0;
   double exposure_ms_ = 0.0;
   double gain_ = 1.0;
+  ExposureMode exposure_mode_ = ExposureMode::Auto;
 };
 
 // The simulator as a Source (the GUI and worker run on it live). Frames carry exposure_ms, gain
@@ -188,12 +195,17 @@ public:
   explicit SimulatedSource(const SimulatorOptions& options);
   const SourceInfo& info() const override { return info_; }
   std::optional<Frame> next() override;
-  void rewind() override { simulator_.rewind(); }
+  void rewind() override;
   std::shared_ptr<const CameraModel> camera() const override { return simulator_.camera(); }
   // The simulated lamp: a power set here (the operator's, or the sweep wizard's) replaces the
   // options' power schedule from the next frame on.
   std::shared_ptr<IlluminatorController> illuminator() const override { return lamp_; }
   std::optional<PhotometricTruth> photometric_truth() const override;
+
+  // The simulated camera's exposure, gain, auto exposure and lock, as a V4L2 camera offers them
+  // (the GUI's Camera tab, the power sweep's lock); changes take effect from the next frame, and
+  // a rewind keeps them.
+  std::shared_ptr<CameraControls> camera_controls() const override { return controls_; }
 
   Simulator& simulator() { return simulator_; }
   const Simulator& simulator() const { return simulator_; }
@@ -203,8 +215,12 @@ public:
 private:
   Simulator simulator_;
   SourceInfo info_;
+  void apply_camera_controls();
+
   std::optional<SE3> last_pose_;
   std::shared_ptr<ManualIlluminator> lamp_;
+  std::shared_ptr<CameraControlHub> controls_;
+  std::optional<std::chrono::steady_clock::time_point> last_frame_at_;
 };
 
 std::unique_ptr<Source> make_simulated_source(const SimulatorOptions& options = {});

@@ -23,6 +23,7 @@ struct PhotometricTruth {
   std::optional<VignetteModel> halo;
 };
 class IlluminatorController;
+class CameraControls;
 
 struct SourceInfo {
   std::string kind;         // "tum", "euroc", "folder", "demo", "v4l2", "session", ...
@@ -76,6 +77,9 @@ public:
   // sends the operator's power to it, and the frames then report the power they were taken at.
   // Called on the worker thread.
   virtual std::shared_ptr<IlluminatorController> illuminator() const { return nullptr; }
+  // The camera's exposure, gain and lock, when the source has a camera to control (a V4L2 camera,
+  // the simulator's); thread-safe, shared so it may outlive the source.
+  virtual std::shared_ptr<CameraControls> camera_controls() const { return nullptr; }
   // The true response and vignette, when the source knows them (for overlays and evaluation).
   virtual std::optional<PhotometricTruth> photometric_truth() const { return std::nullopt; }
 

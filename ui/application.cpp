@@ -147,6 +147,7 @@ void Application::draw_strip(const Snapshot& snapshot) {
       case StripTab::Illumination:
         illumination_.set_response_root(recording_.sessions_folder());
         illumination_.draw(snapshot, post_);
+        if (const auto factor = illumination_.take_sweep_again_factor()) sweep_camera_lock_.sweep_again_at(*factor);
         break;
       case StripTab::Photometric: photometric_.draw(snapshot); break;
       case StripTab::Session: session_.draw(snapshot, post_, session_actions_); break;
@@ -220,6 +221,7 @@ void Application::lock_camera_for_sweep(const Snapshot& snapshot) {
   else if (change.event != Event::None)
     notifications_.push(NotificationArea::Severity::Notice, change.message);
   illumination_.set_camera_hold(sweep_camera_lock_.holding());
+  illumination_.set_sweep_again_exposure(controls ? sweep_camera_lock_.last_sweep_exposure_ms() : std::nullopt);
 }
 
 void Application::draw_camera_tab() {

@@ -1,5 +1,8 @@
 #include "nirslam/illumination/sweep_camera_lock.hpp"
 
+#include <algorithm>
+#include <utility>
+
 #include <fmt/format.h>
 
 #include "nirslam/common/error.hpp"
@@ -33,6 +36,8 @@ SweepCameraLock::Change SweepCameraLock::update(SweepStage stage, const std::sha
     Change change;
     if (held_ && previous) change = release(*previous);
     held_ = seen_locked_ = restore_auto_exposure_ = left_to_operator_ = false;
+    last_exposure_ms_.reset();
+    next_factor_ = 1.0;
     camera_ = camera;
     if (change.event != Event::None) return change;
   }
@@ -48,6 +53,8 @@ SweepCameraLock::Change SweepCameraLock::update(SweepStage stage, const std::sha
   const CameraState state = camera->state();
   if (state.locked) {
     seen_locked_ = true;
+    if (state.exposure_in_effect_ms) last_exposure_ms_ = state.exposure_in_effect_ms;
+    if (state.gain_in_effect) last_gain_ = *state.gain_in_effect;
     return {};
   }
   if (!seen_locked_) return {};  // the capture thread has not applied the lock yet
@@ -62,18 +69,43 @@ SweepCameraLock::Change SweepCameraLock::update(SweepStage stage, const std::sha
 SweepCameraLock::Change SweepCameraLock::lock(CameraControls& camera) {
   const CameraState state = camera.state();
   if (state.connection == CameraConnection::Failed || state.connection == CameraConnection::Stopped) return {};
+  const double factor = std::exchange(next_factor_, 1.0);
   if (state.locked) {
     left_to_operator_ = true;
     return {Event::OperatorsLock,
-            fmt::format("{}'s exposure and gain are locked already; the power sweep keeps them.", camera_name(state))};
+            fmt::format("{}'s exposure and gain are locked already; the power sweep keeps them{}.", camera_name(state),
+                        factor > 1.0 ? " (unlock them for the advised exposure)" : "")};
   }
   restore_auto_exposure_ = state.auto_exposure;
+  const std::string longer = factor > 1.0 && last_exposure_ms_ ? lengthen(camera, state, factor) : std::string();
   camera.set_locked(true);
   held_ = true;
   seen_locked_ = false;
   return {Event::Locked,
-          fmt::format("{}'s exposure and gain locked for the power sweep{}.", camera_name(state),
+          fmt::format("{}'s exposure and gain locked for the power sweep{}{}.", camera_name(state), longer,
                       restore_auto_exposure_ ? " (auto exposure off until it ends)" : "")};
+}
+
+// The exposure, then the gain, for `factor` times the last sweep's; says what it set.
+std::string SweepCameraLock::lengthen(CameraControls& camera, const CameraState& state, double factor) const {
+  const double wanted_ms = *last_exposure_ms_ * factor;
+  const double exposure_ms =
+      state.exposure_ms.available ? std::clamp(wanted_ms, state.exposure_ms.minimum, state.exposure_ms.maximum) : wanted_ms;
+  double gain = last_gain_;
+  if (exposure_ms < wanted_ms && state.gain.available)
+    gain = std::clamp(last_gain_ * wanted_ms / exposure_ms, state.gain.minimum, state.gain.maximum);
+  try {
+    camera.set_exposure_ms(exposure_ms);
+    if (gain != last_gain_) camera.set_gain(gain);
+  } catch (const InputError& e) {
+    return fmt::format(" (the advised exposure could not be set: {})", e.what());
+  }
+  const double reached = exposure_ms * gain / (*last_exposure_ms_ * last_gain_);
+  std::string text = fmt::format(" at {:.3g} ms", exposure_ms);
+  if (gain != last_gain_ && state.gain_unity > 0.0) text += fmt::format(", gain {:.2g}x", gain / state.gain_unity);
+  text += fmt::format(", {:.1f}x the last sweep's", reached);
+  if (reached < 0.95 * factor) text += fmt::format(" (the camera's limit; {:.1f}x was advised)", factor);
+  return text;
 }
 
 SweepCameraLock::Change SweepCameraLock::release(CameraControls& camera) {

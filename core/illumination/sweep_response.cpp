@@ -81,6 +81,7 @@ SweepResponse fit_sweep_response(const std::vector<SweepShot>& shots) {
   out.ambient_share_at_weakest = fit.ambient_share_at_weakest;
   if (fit.weakest_image >= 0) out.weakest_power_w = shots[static_cast<std::size_t>(fit.weakest_image)].power_w;
   out.highest_grey = fit.highest_grey;
+  out.exposure_factor = sweep_exposure_factor(fit);
   if (out.residual_rms_grey > kSweepResponseMaxResidualGrey)
     out.warning = fmt::format("residual {:.1f} grey levels: did the rig or the scene move, or the exposure not hold?",
                               out.residual_rms_grey);

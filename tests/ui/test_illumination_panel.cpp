@@ -19,6 +19,7 @@
 #include "nirslam/capture/v4l2_source.hpp"
 #include "nirslam/config/illumination_config.hpp"
 #include "nirslam/illumination/sweep_recorder.hpp"
+#include "nirslam/photometric/exposure_sweep_calibration.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/demo_source.hpp"
 #include "nirslam/worker/worker.hpp"
@@ -469,6 +470,104 @@ TEST_F(IlluminationPanelTest, TheWindowLocksTheSimulatorsCameraForTheSweepAndGiv
       EXPECT_TRUE(controls->state().auto_exposure);
     }
   }
+}
+
+// The street's sweep at 4 ms stops short of the top; the response row offers the advised exposure,
+// and the sweep taken again there (the window sets the camera, the worker's wizard sweeps) meets
+// the response target: the loop an operator goes through, end to end on the simulator's camera.
+TEST_F(IlluminationPanelTest, ASweepThatStopsShortOffersTheAdvisedExposureAndTheSecondSweepMeetsTheTarget) {
+  SimulatorOptions sim = nirslam::testing::still_rig();
+  sim.scene = sim::SceneKind::Outdoor;
+  const std::vector<double> powers = {0, 5, 10, 20, 40, 65, 100, 150};
+  WorkerOptions options{.pacing = Pacing::AsFastAsPossible, .loop = true};
+  options.pipeline.mode = PipelineMode::Quality;
+  options.illumination = shipped_config();
+  options.illumination.sweep.settle_frames = 1;
+  Worker worker(options);
+  std::mutex mutex;
+  std::shared_ptr<CameraControls> controls;
+  worker.post(command::SetSource{[&] {
+    auto source = make_simulated_source(sim);
+    const std::lock_guard lock(mutex);
+    controls = source->camera_controls();
+    return source;
+  }});
+  worker.post(command::Start{});
+  ui_.reset();
+  ui_ = std::make_unique<OffscreenUi>(1280, 800);
+  Application app(gl::find_shader_dir(), [&worker](Command c) { worker.post(std::move(c)); });
+  SessionActions actions;
+  actions.camera_controls = [&] {
+    const std::lock_guard lock(mutex);
+    return controls;
+  };
+  app.set_session_actions(actions);
+  const auto draw = [&] { ui_->frame([&] { app.draw(*worker.snapshot()); }); };
+  const auto camera_state = [&] {
+    const std::lock_guard lock(mutex);
+    return controls->state();
+  };
+  // The operator confirms each power the wizard asks for; the window runs between the steps.
+  std::vector<double> held_ms;  // the exposure each sweep's frames were taken at
+  const auto sweep = [&]() -> std::shared_ptr<const Snapshot> {
+    for (const double power : powers) {
+      const auto asked = worker.wait_for(
+          [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 20s);
+      EXPECT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
+      draw();
+      EXPECT_TRUE(camera_state().locked);
+      worker.post(command::Sweep{sweep_command::Capture{power}});
+    }
+    const auto fitted = worker.wait_for(
+        [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state != SweepResponse::State::Fitting; },
+        60s);
+    held_ms.push_back(fitted->frame && fitted->frame->exposure_ms ? *fitted->frame->exposure_ms : 0.0);
+    for (int i = 0; i < 3; ++i) draw();
+    return fitted;
+  };
+  const auto mean_error = [&](const SweepResponse& response) {
+    const std::vector<double> G = response.response.inverse_table(256), G_true = sim.response.inverse_table(256);
+    double sum = 0.0;
+    for (std::size_t i = 0; i < 256; ++i) sum += std::abs(G[i] - G_true[i]) / 256.0;
+    return sum;
+  };
+
+  worker.post(command::Sweep{sweep_command::Start{powers, 2}});
+  const auto first = sweep();
+  ASSERT_TRUE(first->sweep_response && first->sweep_response->state == SweepResponse::State::Done)
+      << (first->sweep_response ? first->sweep_response->reason : first->message);
+  const SweepResponse& short_sweep = *first->sweep_response;
+  EXPECT_NE(short_sweep.warning.find("about"), std::string::npos) << short_sweep.warning;
+  EXPECT_GT(short_sweep.exposure_factor, 2.0);
+  const double short_error = mean_error(short_sweep);
+  ASSERT_FALSE(app.illumination().sweep_again_button_rect().empty()) << "the response row offers the advised exposure";
+  testing::save_if_requested(ui_->read_rgba(), "SweepAgainAtTheAdvisedExposure");
+
+  ImGuiIO& io = ImGui::GetIO();
+  io.MousePos = app.illumination().sweep_again_button_rect().centre();
+  draw();
+  io.MouseDown[0] = true;
+  draw();
+  io.MouseDown[0] = false;
+  draw();
+  io.MousePos = ImVec2(-1.0f, -1.0f);
+  const auto second = sweep();
+  worker.post(command::Pause{});
+  ASSERT_TRUE(second->sweep_response && second->sweep_response->state == SweepResponse::State::Done)
+      << (second->sweep_response ? second->sweep_response->reason : second->message);
+  const SweepResponse& full_sweep = *second->sweep_response;
+  const double full_error = mean_error(full_sweep);
+  std::printf("the street's sweep at 4 ms: top grey %.0f, %.2f grey levels mean error, advice %.1fx; again at the "
+              "advice: top grey %.0f, %.2f grey levels\n",
+              short_sweep.highest_grey, short_error, short_sweep.exposure_factor, full_sweep.highest_grey, full_error);
+  ASSERT_EQ(held_ms.size(), 2u);
+  EXPECT_NEAR(held_ms[1] / held_ms[0], short_sweep.exposure_factor, 0.01 * short_sweep.exposure_factor)
+      << "the second sweep at the advised exposure";
+  EXPECT_GT(full_sweep.highest_grey, kSweepAdvisedHighestGrey);
+  EXPECT_TRUE(full_sweep.warning.empty()) << full_sweep.warning;
+  EXPECT_GT(short_error, 2.0);
+  EXPECT_LT(full_error, 1.0);
+  EXPECT_FALSE(camera_state().locked) << "given back after the second sweep";
 }
 
 }  // namespace

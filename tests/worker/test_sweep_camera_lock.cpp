@@ -99,10 +99,18 @@ public:
     state_.connection = CameraConnection::Streaming;
     state_.auto_exposure_available = true;
     state_.auto_exposure = auto_exposure;
+    state_.exposure_ms = {true, 0.1, 30.0, 0.1, 10.0};
+    state_.gain = {true, 16.0, 128.0, 1.0, 16.0};
+    state_.gain_unity = 16.0;
+    state_.exposure_in_effect_ms = 4.0;
+    state_.gain_in_effect = 16.0;
   }
   CameraState state() const override { return state_; }
-  void set_exposure_ms(double) override {}
-  void set_gain(double) override {}
+  void set_exposure_ms(double exposure_ms) override {
+    state_.exposure_in_effect_ms = exposure_ms;
+    state_.auto_exposure = false;
+  }
+  void set_gain(double gain) override { state_.gain_in_effect = gain; }
   void set_auto_exposure(bool on) override {
     if (refuse_) throw InputError(state_.device, "auto_exposure", "refused by the test device");
     state_.auto_exposure = on;
@@ -165,6 +173,42 @@ TEST(SweepCameraLock, ADeviceThatRefusesAutoExposureAfterTheSweepSaysSo) {
   EXPECT_TRUE(contains(change.message, "could not be turned back on")) << change.message;
   EXPECT_TRUE(contains(change.message, "refused by the test device")) << change.message;
   EXPECT_FALSE(camera->state().locked);
+}
+
+TEST(SweepCameraLock, TheNextSweepTakesTheAdvisedExposureThenGainWhereTheExposureEnds) {
+  auto camera = std::make_shared<ImmediateCamera>(true);
+  SweepCameraLock lock;
+  EXPECT_FALSE(lock.last_sweep_exposure_ms());
+  EXPECT_EQ(lock.update(SweepStage::AwaitingPower, camera).event, Event::Locked);
+  EXPECT_EQ(lock.update(SweepStage::Capturing, camera).event, Event::None);
+  EXPECT_EQ(lock.last_sweep_exposure_ms(), 4.0);
+  EXPECT_EQ(lock.update(SweepStage::Complete, camera).event, Event::Released);
+  EXPECT_TRUE(camera->state().auto_exposure);
+
+  lock.sweep_again_at(5.0);  // 20 ms: within the exposure's range
+  const SweepCameraLock::Change longer = lock.update(SweepStage::AwaitingPower, camera);
+  EXPECT_EQ(longer.event, Event::Locked);
+  EXPECT_TRUE(contains(longer.message, "at 20 ms, 5.0x the last sweep's")) << longer.message;
+  EXPECT_EQ(camera->state().exposure_in_effect_ms, 20.0);
+  EXPECT_TRUE(camera->state().locked);
+  EXPECT_EQ(lock.update(SweepStage::Capturing, camera).event, Event::None);
+  EXPECT_EQ(lock.update(SweepStage::Complete, camera).event, Event::Released);
+  EXPECT_TRUE(camera->state().auto_exposure) << "auto exposure comes back after the second sweep too";
+
+  lock.sweep_again_at(3.0);  // 60 ms: the exposure stops at 30, the gain doubles
+  const SweepCameraLock::Change gained = lock.update(SweepStage::AwaitingPower, camera);
+  EXPECT_TRUE(contains(gained.message, "at 30 ms, gain 2x, 3.0x the last sweep's")) << gained.message;
+  EXPECT_EQ(camera->state().gain_in_effect, 32.0);
+  EXPECT_EQ(lock.update(SweepStage::Capturing, camera).event, Event::None);
+  EXPECT_EQ(lock.update(SweepStage::Complete, camera).event, Event::Released);
+
+  lock.sweep_again_at(20.0);  // beyond the gain's range too: said so
+  const SweepCameraLock::Change limited = lock.update(SweepStage::AwaitingPower, camera);
+  EXPECT_TRUE(contains(limited.message, "the camera's limit; 20.0x was advised")) << limited.message;
+  EXPECT_EQ(lock.update(SweepStage::Complete, camera).event, Event::Released);
+
+  EXPECT_EQ(lock.update(SweepStage::AwaitingPower, camera).event, Event::Locked);  // the factor was used once
+  EXPECT_EQ(camera->state().exposure_in_effect_ms, 30.0);
 }
 
 }  // namespace

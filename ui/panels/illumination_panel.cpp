@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <imgui.h>
 
+#include "nirslam/photometric/exposure_sweep_calibration.hpp"
 #include "ui/theme.hpp"
 
 namespace nirslam::ui {
@@ -56,7 +57,8 @@ void diamond(ImDrawList* draw, ImVec2 c, float r, ImU32 fill, ImU32 outline) {
 }  // namespace
 
 void IlluminationPanel::draw(const Snapshot& snapshot, const CommandSink& post) {
-  banner_ = plot_ = coverage_map_ = capture_button_ = response_curve_ = hold_button_ = camera_hold_rect_ = {};
+  banner_ = plot_ = coverage_map_ = capture_button_ = response_curve_ = hold_button_ = camera_hold_rect_ =
+      sweep_again_button_ = {};
   marker_.reset();
   const ImVec2 avail = ImGui::GetContentRegionAvail();
   const float recommendation_height = ImGui::GetFrameHeightWithSpacing() + ImGui::GetTextLineHeightWithSpacing();
@@ -305,7 +307,7 @@ void IlluminationPanel::draw_wizard(const IlluminationStatus& status, const Snap
         ImGui::SetTooltip("Plateau share %.1f %%, at most %.2f %% saturated pixels", 100.0 * status.settings.plateau_share,
                           100.0 * status.settings.max_saturated_fraction);
       draw_settings_popup(status, post);
-      if (snapshot.sweep_response) draw_sweep_response(*snapshot.sweep_response, post);
+      if (snapshot.sweep_response) draw_sweep_response(*snapshot.sweep_response, plan, post);
       break;
     }
     case SweepStage::AwaitingPower: {
@@ -376,11 +378,11 @@ void IlluminationPanel::draw_wizard(const IlluminationStatus& status, const Snap
   }
 }
 
-void IlluminationPanel::draw_sweep_response(const SweepResponse& response, const CommandSink& post) {
+void IlluminationPanel::draw_sweep_response(const SweepResponse& response, const SweepPlan& plan, const CommandSink& post) {
   ImGui::AlignTextToFramePadding();
-  ImGui::TextColored(to_vec4(colours::text_dim), "Camera response");
+  ImGui::TextColored(to_vec4(colours::text_dim), "Response");
   if (ImGui::IsItemHovered())
-    ImGui::SetTooltip("Fitted from the sweep's frames (the rig still, the exposure locked): the lamp's irradiance\n"
+    ImGui::SetTooltip("The camera's response, fitted from the sweep's frames (the rig still, the exposure locked): the lamp's irradiance\n"
                       "follows power x exposure, other light is fitted per point. Hold writes DSO's pcalib.txt and\n"
                       "has the pipeline hold it, estimating exposures and the halo factor online.");
   ImGui::SameLine();
@@ -435,28 +437,48 @@ void IlluminationPanel::draw_sweep_response(const SweepResponse& response, const
       post(command::HoldSweepResponse{response_root_ / name});
     }
   }
-  // The figures, short; the rest in the tooltip.
-  ImGui::SameLine();
-  ImGui::AlignTextToFramePadding();
+  // The figures, short, the rest in the tooltip; when the sweep should be taken again, the button
+  // takes their place (the row has no room for both) and carries them in its tooltip.
   // A share within the estimate's noise (it may come out slightly below 0) is no ambient light.
   const std::string figures = response.ambient_share_at_weakest < 0.005
                                   ? fmt::format("{:.2f} gl · no ambient light", response.residual_rms_grey)
-                                  : fmt::format("{:.2f} gl · ambient {:.1f} %", response.residual_rms_grey,
-                                                100.0 * response.ambient_share_at_weakest);
-  ImGui::TextColored(to_vec4(response.warning.empty() ? colours::text : colours::banner_dark), "%s", figures.c_str());
-  if (ImGui::IsItemHovered()) {
-    const std::string detail = fmt::format(
-        "residual {:.2f} grey levels rms over {} frames at {} powers ({} points), grey levels up to {:.0f}\nambient "
-        "light: {:.1f} % of the lamp's irradiance at {:g} W (median over the points){}",
-        response.residual_rms_grey, response.images, response.powers_w.size(), response.points, response.highest_grey,
-        100.0 * response.ambient_share_at_weakest, response.weakest_power_w,
-        response.warning.empty() ? std::string() : "\n" + response.warning);
+                                  : fmt::format("{:.2f} gl · ambient {:.{}f} %", response.residual_rms_grey,
+                                                100.0 * response.ambient_share_at_weakest,
+                                                response.ambient_share_at_weakest < 0.1 ? 1 : 0);
+  const std::string detail = fmt::format(
+      "residual {:.2f} grey levels rms over {} frames at {} powers ({} points), grey levels up to {:.0f}\nambient "
+      "light: {:.1f} % of the lamp's irradiance at {:g} W (median over the points){}",
+      response.residual_rms_grey, response.images, response.powers_w.size(), response.points, response.highest_grey,
+      100.0 * response.ambient_share_at_weakest, response.weakest_power_w,
+      response.warning.empty() ? std::string() : "\n" + response.warning);
+  const auto wrapped_tooltip = [](const std::string& text) {
     ImGui::BeginTooltip();
     ImGui::PushTextWrapPos(ImGui::GetFontSize() * 36.0f);
-    ImGui::TextUnformatted(detail.c_str());
+    ImGui::TextUnformatted(text.c_str());
     ImGui::PopTextWrapPos();
     ImGui::EndTooltip();
+  };
+  ImGui::SameLine();
+  if (response.exposure_factor > 1.0 && sweep_again_exposure_ms_) {
+    const std::string label = fmt::format("Sweep at {:.3g} ms", *sweep_again_exposure_ms_ * response.exposure_factor);
+    ImGui::PushStyleColor(ImGuiCol_Text, to_vec4(colours::banner_dark));
+    const bool again = icon_button("sweep_again", Icon::Play, label.c_str(), static_cast<bool>(post));
+    ImGui::PopStyleColor();
+    sweep_again_button_ = last_item_rect();
+    if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
+      wrapped_tooltip(fmt::format("Take the same sweep again at {:.1f}x the exposure (then the gain, where the "
+                                  "camera's longest exposure is not enough), so the brightest surfaces come near grey "
+                                  "{:.0f}.\n{}: {}",
+                                  response.exposure_factor, kSweepTargetHighestGrey, figures, detail));
+    if (again) {
+      sweep_again_factor_ = response.exposure_factor;
+      post(command::Sweep{sweep_command::Start{plan.powers_w, plan.frames_per_power}});
+    }
+    return;
   }
+  ImGui::AlignTextToFramePadding();
+  ImGui::TextColored(to_vec4(response.warning.empty() ? colours::text : colours::banner_dark), "%s", figures.c_str());
+  if (ImGui::IsItemHovered()) wrapped_tooltip(detail);
 }
 
 void IlluminationPanel::draw_settings_popup(const IlluminationStatus& status, const CommandSink& post) {

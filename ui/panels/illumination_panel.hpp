@@ -26,7 +26,8 @@ namespace nirslam::ui {
 //   - the recommendation with its confidence; its reasons in the tooltip,
 //   - after a sweep, the camera response fitted from its frames (snapshot.sweep_response: the
 //     curve, residual, ambient share, or why there is none) and Hold, which writes it under the
-//     response folder and has the pipeline hold it (command::HoldSweepResponse).
+//     response folder and has the pipeline hold it (command::HoldSweepResponse); when its images
+//     stopped short of the top and a camera was held for it, "Sweep at N ms" to take it again.
 // It reads snapshot.illumination, snapshot.quality/structure/exposure; the wizard's state lives in
 // the worker (SweepRecorder), the panel only posts command::Sweep and keeps what is being typed.
 class IlluminationPanel {
@@ -48,6 +49,12 @@ public:
   void set_response_root(const std::filesystem::path& root) { response_root_ = root; }
   // What the sweep's camera lock holds (SweepCameraLock::holding), shown while the wizard sweeps.
   void set_camera_hold(std::optional<std::string> hold) { camera_hold_ = std::move(hold); }
+  // The exposure the last sweep held a camera at (SweepCameraLock::last_sweep_exposure_ms); with it
+  // a response whose sweep stopped short of the top offers "Sweep at N ms", which starts the same
+  // sweep again and leaves the factor for take_sweep_again_factor().
+  void set_sweep_again_exposure(std::optional<double> exposure_ms) { sweep_again_exposure_ms_ = exposure_ms; }
+  std::optional<double> take_sweep_again_factor() { return std::exchange(sweep_again_factor_, std::nullopt); }
+  const ScreenRect& sweep_again_button_rect() const { return sweep_again_button_; }  // empty unless offered
   // Where the recommended point was drawn (sweep: on the curve; prior: on the power axis).
   const std::optional<ImVec2>& recommended_marker() const { return marker_; }
 
@@ -59,7 +66,7 @@ private:
   void draw_settings_popup(const IlluminationStatus& status, const CommandSink& post);
   void draw_plot(const IlluminationStatus& status, float height);  // title row and plot in `height`
   void draw_recommendation(const IlluminationStatus& status);
-  void draw_sweep_response(const SweepResponse& response, const CommandSink& post);
+  void draw_sweep_response(const SweepResponse& response, const SweepPlan& plan, const CommandSink& post);
 
   ScreenRect banner_;
   ScreenRect plot_;
@@ -68,6 +75,9 @@ private:
   ScreenRect response_curve_;
   ScreenRect hold_button_;
   ScreenRect camera_hold_rect_;
+  ScreenRect sweep_again_button_;
+  std::optional<double> sweep_again_exposure_ms_;
+  std::optional<double> sweep_again_factor_;
   std::filesystem::path response_root_;
   std::optional<std::string> camera_hold_;
   std::optional<ImVec2> marker_;

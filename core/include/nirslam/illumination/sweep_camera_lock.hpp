@@ -35,12 +35,20 @@ public:
 
   Change update(SweepStage stage, const std::shared_ptr<CameraControls>& camera);
 
+  // The next sweep starts at `factor` times the exposure x gain the last one was held at (the
+  // sweep's advice when its images stopped short of the top): the exposure first, then the gain
+  // for what the longest exposure cannot give. Used once, by the next sweep that locks.
+  void sweep_again_at(double factor) { next_factor_ = factor; }
+  // What the last sweep held the camera at (nothing before one, or after the camera changed).
+  std::optional<double> last_sweep_exposure_ms() const { return last_exposure_ms_; }
+
   // While the lock holds a camera for the sweep, what it holds, short enough for the wizard's
   // line: "held at 12.3 ms, gain 1x until the sweep ends".
   std::optional<std::string> holding() const;
 
 private:
   Change lock(CameraControls& camera);
+  std::string lengthen(CameraControls& camera, const CameraState& state, double factor) const;
   Change release(CameraControls& camera);
 
   std::weak_ptr<CameraControls> camera_;
@@ -48,6 +56,9 @@ private:
   bool seen_locked_ = false;        // the camera's state has shown the lock since it was set
   bool restore_auto_exposure_ = false;
   bool left_to_operator_ = false;   // until the sweep ends, the camera's lock is not touched
+  std::optional<double> last_exposure_ms_;
+  double last_gain_ = 1.0;          // device units, as CameraState::gain
+  double next_factor_ = 1.0;
 };
 
 const char* to_string(SweepCameraLock::Event event);

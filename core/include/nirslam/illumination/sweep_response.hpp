@@ -53,6 +53,7 @@ struct SweepResponse {
   ResponseModel response;
   double residual_rms_grey = 0.0;
   double highest_grey = 0.0;  // ExposureSweepResult::highest_grey: the top of the observed range
+  double exposure_factor = 1.0;  // above 1: sweep again at this times the exposure (sweep_exposure_factor)
   int images = 0;  // fitted
   int points = 0;
   std::vector<double> powers_w;             // distinct powers fitted, ascending

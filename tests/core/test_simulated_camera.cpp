@@ -13,18 +13,16 @@
 #include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/frame_limit.hpp"
 #include "text_contains.hpp"
+#include "worker/still_rig_sweep.hpp"
 
 namespace nirslam {
 namespace {
 
+// The sweep tests' still rig, smaller, under its auto exposure from a short start.
 SimulatorOptions small_room_under_auto_exposure() {
-  SimulatorOptions o;
-  o.scene = sim::SceneKind::Room;
-  o.motion = sim::MotionKind::Tripod;
+  SimulatorOptions o = testing::still_rig();
   o.width = 64;
   o.height = 48;
-  o.supersampling = 1;
-  o.frames = 200;
   o.exposure_mode = ExposureMode::Auto;
   o.exposure_ms = 0.5;  // the auto exposure ramps up from here
   return o;

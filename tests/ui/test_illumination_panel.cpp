@@ -398,76 +398,105 @@ TEST_F(IlluminationPanelTest, TheWindowLocksTheCamerasAutoExposureWhileTheWizard
   EXPECT_EQ(app.notifications().size(), 2u) << "the release is announced";
 }
 
+// The worker on a simulated still rig and the window over it, the simulator's camera controls
+// handed to the window as the GUI's source factory hands them on: the operator's side of a sweep.
+class RigWindow {
+public:
+  RigWindow(const SimulatorOptions& sim, int settle_frames) : worker_(options(settle_frames)) {
+    worker_.post(command::SetSource{[this, sim] {
+      auto source = make_simulated_source(sim);
+      const std::lock_guard lock(mutex_);
+      controls_ = source->camera_controls();
+      return source;
+    }});
+    worker_.post(command::Start{});
+    SessionActions actions;
+    actions.camera_controls = [this] {
+      const std::lock_guard lock(mutex_);
+      return controls_;
+    };
+    app_.set_session_actions(actions);
+  }
+
+  Worker& worker() { return worker_; }
+  Application& app() { return app_; }
+  CameraState camera_state() {
+    const std::lock_guard lock(mutex_);
+    return controls_ ? controls_->state() : CameraState{};
+  }
+  // One frame of the window's loop: the latest snapshot drawn (skipped for "no window").
+  void draw(OffscreenUi& ui) {
+    if (with_window) ui.frame([&] { app_.draw(*worker_.snapshot()); });
+  }
+  // The operator confirms each power the wizard asks for, the window running between the steps;
+  // returns the snapshot with the sweep's fitted response (or its failure).
+  std::shared_ptr<const Snapshot> sweep(OffscreenUi& ui, const std::vector<double>& powers) {
+    for (const double power : powers) {
+      const auto asked = worker_.wait_for(
+          [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 20s);
+      EXPECT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
+      draw(ui);
+      if (with_window) EXPECT_TRUE(camera_state().locked) << "locked once the wizard asks for a power";
+      worker_.post(command::Sweep{sweep_command::Capture{power}});
+    }
+    const auto fitted = worker_.wait_for(
+        [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state != SweepResponse::State::Fitting; },
+        60s);
+    for (int i = 0; i < 3; ++i) draw(ui);
+    return fitted;
+  }
+
+  bool with_window = true;
+
+private:
+  static WorkerOptions options(int settle_frames) {
+    WorkerOptions o{.pacing = Pacing::AsFastAsPossible, .loop = true};
+    o.pipeline.mode = PipelineMode::Quality;
+    o.illumination = shipped_config();
+    o.illumination.sweep.settle_frames = settle_frames;
+    return o;
+  }
+
+  std::mutex mutex_;
+  std::shared_ptr<CameraControls> controls_;
+  Worker worker_;
+  Application app_{gl::find_shader_dir(), [this](Command c) { worker_.post(std::move(c)); }};
+};
+
+double mean_response_error(const SweepResponse& response, const ResponseModel& truth) {
+  const std::vector<double> G = response.response.inverse_table(256), G_true = truth.inverse_table(256);
+  double sum = 0.0;
+  for (std::size_t i = 0; i < 256; ++i) sum += std::abs(G[i] - G_true[i]) / 256.0;
+  return sum;
+}
+
 // The simulated rig under its own auto exposure: the window locks the simulator's camera while the
 // wizard sweeps and gives its auto exposure back after; the response comes out right (measured
-// 0.08 grey levels). Without the window the auto exposure follows the lamp, and as the simulator
-// reports each frame's exposure exactly the fit still holds (0.19): the lock is for cameras whose
+// 0.03-0.08 grey levels). Without the window the auto exposure follows the lamp, and as the simulator
+// reports each frame's exposure exactly the fit still holds (0.06-0.19): the lock is for cameras whose
 // reported exposure is not the frame's, and for keeping the images' grey range wide.
 TEST_F(IlluminationPanelTest, TheWindowLocksTheSimulatorsCameraForTheSweepAndGivesItBack) {
   SimulatorOptions sim = nirslam::testing::still_rig();
   sim.exposure_mode = ExposureMode::Auto;
   const std::vector<double> powers = {0, 5, 10, 20, 40, 65, 100, 150};
-  double mean_error[2] = {0.0, 0.0};
   for (const bool with_window : {true, false}) {
-    WorkerOptions options{.pacing = Pacing::AsFastAsPossible, .loop = true};
-    options.pipeline.mode = PipelineMode::Quality;
-    options.illumination = shipped_config();
-    options.illumination.sweep.settle_frames = 20;  // time for the auto exposure to settle at each power
-    Worker worker(options);
-    std::mutex mutex;
-    std::shared_ptr<CameraControls> controls;
-    worker.post(command::SetSource{[&] {
-      auto source = make_simulated_source(sim);
-      const std::lock_guard lock(mutex);
-      controls = source->camera_controls();
-      return source;
-    }});
-    worker.post(command::Start{});
     ui_.reset();
     ui_ = std::make_unique<OffscreenUi>(1280, 800);
-    Application app(gl::find_shader_dir(), [](Command) {});
-    SessionActions actions;
-    actions.camera_controls = [&] {
-      const std::lock_guard lock(mutex);
-      return controls;
-    };
-    app.set_session_actions(actions);
-    // The window's frame loop, as far as the sweep needs it: the latest snapshot drawn.
-    const auto draw = [&] {
-      if (with_window) ui_->frame([&] { app.draw(*worker.snapshot()); });
-    };
-    worker.post(command::Sweep{sweep_command::Start{powers, 2}});
-    for (const double power : powers) {
-      const auto asked = worker.wait_for(
-          [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 20s);
-      ASSERT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
-      draw();
-      if (with_window) {
-        const std::lock_guard lock(mutex);
-        ASSERT_TRUE(controls && controls->state().locked) << "locked once the wizard asks for a power";
-      }
-      worker.post(command::Sweep{sweep_command::Capture{power}});
-    }
-    const auto fitted = worker.wait_for(
-        [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state != SweepResponse::State::Fitting; },
-        60s);
-    draw();
-    worker.post(command::Pause{});
+    RigWindow rig(sim, 20);  // 20 frames at each power for the auto exposure to settle
+    rig.with_window = with_window;
+    rig.worker().post(command::Sweep{sweep_command::Start{powers, 2}});
+    const auto fitted = rig.sweep(*ui_, powers);
+    rig.worker().post(command::Pause{});
     ASSERT_TRUE(fitted->sweep_response);
     const SweepResponse& response = *fitted->sweep_response;
-    if (response.state == SweepResponse::State::Done) {
-      const std::vector<double> G = response.response.inverse_table(256), G_true = sim.response.inverse_table(256);
-      for (std::size_t i = 0; i < 256; ++i) mean_error[with_window] += std::abs(G[i] - G_true[i]) / 256.0;
-    }
-    std::printf("sweep under auto exposure, %s: %s, %.2f grey levels mean error, top grey %.0f %s\n",
-                with_window ? "the window's lock" : "no lock", to_string(response.state), mean_error[with_window],
-                response.highest_grey, response.reason.c_str());
-    EXPECT_EQ(response.state, SweepResponse::State::Done) << response.reason;
-    EXPECT_LT(mean_error[with_window], with_window ? 0.5 : 2.0);
+    ASSERT_EQ(response.state, SweepResponse::State::Done) << response.reason;
+    const double error = mean_response_error(response, sim.response);
+    std::printf("sweep under auto exposure, %s: %.2f grey levels mean error, top grey %.0f\n",
+                with_window ? "the window's lock" : "no lock", error, response.highest_grey);
+    EXPECT_LT(error, with_window ? 0.5 : 2.0);
     if (with_window) {
-      const std::lock_guard lock(mutex);
-      EXPECT_FALSE(controls->state().locked) << "given back after the sweep";
-      EXPECT_TRUE(controls->state().auto_exposure);
+      EXPECT_FALSE(rig.camera_state().locked) << "given back after the sweep";
+      EXPECT_TRUE(rig.camera_state().auto_exposure);
     }
   }
 }
@@ -479,95 +508,44 @@ TEST_F(IlluminationPanelTest, ASweepThatStopsShortOffersTheAdvisedExposureAndThe
   SimulatorOptions sim = nirslam::testing::still_rig();
   sim.scene = sim::SceneKind::Outdoor;
   const std::vector<double> powers = {0, 5, 10, 20, 40, 65, 100, 150};
-  WorkerOptions options{.pacing = Pacing::AsFastAsPossible, .loop = true};
-  options.pipeline.mode = PipelineMode::Quality;
-  options.illumination = shipped_config();
-  options.illumination.sweep.settle_frames = 1;
-  Worker worker(options);
-  std::mutex mutex;
-  std::shared_ptr<CameraControls> controls;
-  worker.post(command::SetSource{[&] {
-    auto source = make_simulated_source(sim);
-    const std::lock_guard lock(mutex);
-    controls = source->camera_controls();
-    return source;
-  }});
-  worker.post(command::Start{});
   ui_.reset();
   ui_ = std::make_unique<OffscreenUi>(1280, 800);
-  Application app(gl::find_shader_dir(), [&worker](Command c) { worker.post(std::move(c)); });
-  SessionActions actions;
-  actions.camera_controls = [&] {
-    const std::lock_guard lock(mutex);
-    return controls;
-  };
-  app.set_session_actions(actions);
-  const auto draw = [&] { ui_->frame([&] { app.draw(*worker.snapshot()); }); };
-  const auto camera_state = [&] {
-    const std::lock_guard lock(mutex);
-    return controls->state();
-  };
-  // The operator confirms each power the wizard asks for; the window runs between the steps.
+  RigWindow rig(sim, 1);
   std::vector<double> held_ms;  // the exposure each sweep's frames were taken at
-  const auto sweep = [&]() -> std::shared_ptr<const Snapshot> {
-    for (const double power : powers) {
-      const auto asked = worker.wait_for(
-          [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 20s);
-      EXPECT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
-      draw();
-      EXPECT_TRUE(camera_state().locked);
-      worker.post(command::Sweep{sweep_command::Capture{power}});
-    }
-    const auto fitted = worker.wait_for(
-        [](const Snapshot& s) { return s.sweep_response && s.sweep_response->state != SweepResponse::State::Fitting; },
-        60s);
-    held_ms.push_back(fitted->frame && fitted->frame->exposure_ms ? *fitted->frame->exposure_ms : 0.0);
-    for (int i = 0; i < 3; ++i) draw();
-    return fitted;
-  };
-  const auto mean_error = [&](const SweepResponse& response) {
-    const std::vector<double> G = response.response.inverse_table(256), G_true = sim.response.inverse_table(256);
-    double sum = 0.0;
-    for (std::size_t i = 0; i < 256; ++i) sum += std::abs(G[i] - G_true[i]) / 256.0;
-    return sum;
-  };
+  const auto exposure_of = [](const Snapshot& s) { return s.frame && s.frame->exposure_ms ? *s.frame->exposure_ms : 0.0; };
 
-  worker.post(command::Sweep{sweep_command::Start{powers, 2}});
-  const auto first = sweep();
+  rig.worker().post(command::Sweep{sweep_command::Start{powers, 2}});
+  const auto first = rig.sweep(*ui_, powers);
   ASSERT_TRUE(first->sweep_response && first->sweep_response->state == SweepResponse::State::Done)
       << (first->sweep_response ? first->sweep_response->reason : first->message);
+  held_ms.push_back(exposure_of(*first));
   const SweepResponse& short_sweep = *first->sweep_response;
   EXPECT_NE(short_sweep.warning.find("about"), std::string::npos) << short_sweep.warning;
   EXPECT_GT(short_sweep.exposure_factor, 2.0);
-  const double short_error = mean_error(short_sweep);
-  ASSERT_FALSE(app.illumination().sweep_again_button_rect().empty()) << "the response row offers the advised exposure";
+  const double short_error = mean_response_error(short_sweep, sim.response);
+  const ScreenRect again = rig.app().illumination().sweep_again_button_rect();
+  ASSERT_FALSE(again.empty()) << "the response row offers the advised exposure";
   testing::save_if_requested(ui_->read_rgba(), "SweepAgainAtTheAdvisedExposure");
 
-  ImGuiIO& io = ImGui::GetIO();
-  io.MousePos = app.illumination().sweep_again_button_rect().centre();
-  draw();
-  io.MouseDown[0] = true;
-  draw();
-  io.MouseDown[0] = false;
-  draw();
-  io.MousePos = ImVec2(-1.0f, -1.0f);
-  const auto second = sweep();
-  worker.post(command::Pause{});
+  testing::click_at(again.centre(), [&] { rig.draw(*ui_); });
+  const auto second = rig.sweep(*ui_, powers);
+  rig.worker().post(command::Pause{});
   ASSERT_TRUE(second->sweep_response && second->sweep_response->state == SweepResponse::State::Done)
       << (second->sweep_response ? second->sweep_response->reason : second->message);
+  held_ms.push_back(exposure_of(*second));
   const SweepResponse& full_sweep = *second->sweep_response;
-  const double full_error = mean_error(full_sweep);
+  const double full_error = mean_response_error(full_sweep, sim.response);
   std::printf("the street's sweep at 4 ms: top grey %.0f, %.2f grey levels mean error, advice %.1fx; again at the "
               "advice: top grey %.0f, %.2f grey levels\n",
               short_sweep.highest_grey, short_error, short_sweep.exposure_factor, full_sweep.highest_grey, full_error);
-  ASSERT_EQ(held_ms.size(), 2u);
   EXPECT_NEAR(held_ms[1] / held_ms[0], short_sweep.exposure_factor, 0.01 * short_sweep.exposure_factor)
       << "the second sweep at the advised exposure";
   EXPECT_GT(full_sweep.highest_grey, kSweepAdvisedHighestGrey);
   EXPECT_TRUE(full_sweep.warning.empty()) << full_sweep.warning;
-  EXPECT_GT(short_error, 2.0);
-  EXPECT_LT(full_error, 1.0);
-  EXPECT_FALSE(camera_state().locked) << "given back after the second sweep";
+  EXPECT_GT(short_error, 1.0);  // measured 2.85-4.97 over runs (which frames the wizard takes varies)
+  EXPECT_GT(short_error, 2.0 * full_error);
+  EXPECT_LT(full_error, 1.0);  // measured 0.28-0.46
+  EXPECT_FALSE(rig.camera_state().locked) << "given back after the second sweep";
 }
 
 }  // namespace

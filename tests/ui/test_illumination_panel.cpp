@@ -436,7 +436,9 @@ public:
           [&](const Snapshot& s) { return s.illumination && s.illumination->requested_power_w() == power; }, 20s);
       EXPECT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
       draw(ui);
-      if (with_window) EXPECT_TRUE(camera_state().locked) << "locked once the wizard asks for a power";
+      if (with_window) {
+        EXPECT_TRUE(camera_state().locked) << "locked once the wizard asks for a power";
+      }
       worker_.post(command::Sweep{sweep_command::Capture{power}});
     }
     const auto fitted = worker_.wait_for(

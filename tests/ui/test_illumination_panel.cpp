@@ -428,6 +428,18 @@ public:
   void draw(OffscreenUi& ui) {
     if (with_window) ui.frame([&] { app_.draw(*worker_.snapshot()); });
   }
+  // The window runs until the camera's state satisfies `done` (the simulator applies a change
+  // with its next frame, so a moment after the window asked for it); false after 10 s.
+  template <typename Done>
+  bool run_until(OffscreenUi& ui, Done done) {
+    const auto deadline = std::chrono::steady_clock::now() + 10s;
+    while (!done(camera_state())) {
+      if (std::chrono::steady_clock::now() > deadline) return false;
+      draw(ui);
+      std::this_thread::sleep_for(1ms);
+    }
+    return true;
+  }
   // The operator confirms each power the wizard asks for, the window running between the steps;
   // returns the snapshot with the sweep's fitted response (or its failure).
   std::shared_ptr<const Snapshot> sweep(OffscreenUi& ui, const std::vector<double>& powers) {
@@ -437,7 +449,8 @@ public:
       EXPECT_EQ(asked->illumination->requested_power_w(), power) << asked->message;
       draw(ui);
       if (with_window) {
-        EXPECT_TRUE(camera_state().locked) << "locked once the wizard asks for a power";
+        EXPECT_TRUE(run_until(ui, [](const CameraState& c) { return c.locked; }))
+            << "locked once the wizard asks for a power";
       }
       worker_.post(command::Sweep{sweep_command::Capture{power}});
     }
@@ -488,6 +501,10 @@ TEST_F(IlluminationPanelTest, TheWindowLocksTheSimulatorsCameraForTheSweepAndGiv
     rig.with_window = with_window;
     rig.worker().post(command::Sweep{sweep_command::Start{powers, 2}});
     const auto fitted = rig.sweep(*ui_, powers);
+    if (with_window) {
+      EXPECT_TRUE(rig.run_until(*ui_, [](const CameraState& c) { return !c.locked && c.auto_exposure; }))
+          << "given back after the sweep";
+    }
     rig.worker().post(command::Pause{});
     ASSERT_TRUE(fitted->sweep_response);
     const SweepResponse& response = *fitted->sweep_response;
@@ -496,10 +513,6 @@ TEST_F(IlluminationPanelTest, TheWindowLocksTheSimulatorsCameraForTheSweepAndGiv
     std::printf("sweep under auto exposure, %s: %.2f grey levels mean error, top grey %.0f\n",
                 with_window ? "the window's lock" : "no lock", error, response.highest_grey);
     EXPECT_LT(error, with_window ? 0.5 : 2.0);
-    if (with_window) {
-      EXPECT_FALSE(rig.camera_state().locked) << "given back after the sweep";
-      EXPECT_TRUE(rig.camera_state().auto_exposure);
-    }
   }
 }
 
@@ -531,6 +544,7 @@ TEST_F(IlluminationPanelTest, ASweepThatStopsShortOffersTheAdvisedExposureAndThe
 
   testing::click_at(again.centre(), [&] { rig.draw(*ui_); });
   const auto second = rig.sweep(*ui_, powers);
+  EXPECT_TRUE(rig.run_until(*ui_, [](const CameraState& c) { return !c.locked; })) << "given back after the second sweep";
   rig.worker().post(command::Pause{});
   ASSERT_TRUE(second->sweep_response && second->sweep_response->state == SweepResponse::State::Done)
       << (second->sweep_response ? second->sweep_response->reason : second->message);
@@ -540,14 +554,14 @@ TEST_F(IlluminationPanelTest, ASweepThatStopsShortOffersTheAdvisedExposureAndThe
   std::printf("the street's sweep at 4 ms: top grey %.0f, %.2f grey levels mean error, advice %.1fx; again at the "
               "advice: top grey %.0f, %.2f grey levels\n",
               short_sweep.highest_grey, short_error, short_sweep.exposure_factor, full_sweep.highest_grey, full_error);
-  EXPECT_NEAR(held_ms[1] / held_ms[0], short_sweep.exposure_factor, 0.01 * short_sweep.exposure_factor)
-      << "the second sweep at the advised exposure";
+  // At the advised exposure, or at the simulated camera's longest (30 ms; it has no gain to add).
+  const double reachable = std::min(short_sweep.exposure_factor, rig.camera_state().exposure_ms.maximum / held_ms[0]);
+  EXPECT_NEAR(held_ms[1] / held_ms[0], reachable, 0.01 * reachable) << "the second sweep at the advised exposure";
   EXPECT_GT(full_sweep.highest_grey, kSweepAdvisedHighestGrey);
   EXPECT_TRUE(full_sweep.warning.empty()) << full_sweep.warning;
-  EXPECT_GT(short_error, 1.0);  // measured 2.85-4.97 over runs (which frames the wizard takes varies)
+  EXPECT_GT(short_error, 1.0);  // measured 2.9-5.0 over runs (which frames the wizard takes varies)
   EXPECT_GT(short_error, 2.0 * full_error);
-  EXPECT_LT(full_error, 1.0);  // measured 0.28-0.46
-  EXPECT_FALSE(rig.camera_state().locked) << "given back after the second sweep";
+  EXPECT_LT(full_error, 1.0);  // measured 0.02-0.23
 }
 
 }  // namespace

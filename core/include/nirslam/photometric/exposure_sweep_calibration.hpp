@@ -112,7 +112,7 @@ struct ExposureSweepResult {
 // -> 0.01-0.2).
 inline constexpr double kSweepAdvisedHighestGrey = 180.0;
 // Where a sweep's top is aimed when it is taken again (clipping stays rare).
-inline constexpr double kSweepTargetHighestGrey = 210.0;
+inline constexpr double kSweepTargetHighestGrey = 220.0;
 // The exposure x gain factor that would take highest_grey to kSweepTargetHighestGrey (1 when the
 // sweep reached kSweepAdvisedHighestGrey or failed).
 double sweep_exposure_factor(const ExposureSweepResult& result);

@@ -17,18 +17,6 @@ std::string camera_name(const CameraState& state) { return state.device.empty() 
 
 }  // namespace
 
-const char* to_string(SweepCameraLock::Event event) {
-  switch (event) {
-    case SweepCameraLock::Event::None: return "none";
-    case SweepCameraLock::Event::Locked: return "locked";
-    case SweepCameraLock::Event::Released: return "released";
-    case SweepCameraLock::Event::OperatorsLock: return "operator's lock";
-    case SweepCameraLock::Event::OperatorUnlocked: return "operator unlocked";
-    case SweepCameraLock::Event::Failed: return "failed";
-  }
-  return "unknown";
-}
-
 SweepCameraLock::Change SweepCameraLock::update(SweepStage stage, const std::shared_ptr<CameraControls>& camera) {
   const std::shared_ptr<CameraControls> previous = camera_.lock();
   if (previous != camera) {

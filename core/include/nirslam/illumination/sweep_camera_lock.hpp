@@ -61,6 +61,4 @@ private:
   double next_factor_ = 1.0;
 };
 
-const char* to_string(SweepCameraLock::Event event);
-
 }  // namespace nirslam

@@ -17,6 +17,7 @@
 #include "nirslam/photometric/beam_from_halo.hpp"
 #include "nirslam/photometric/calibration_output.hpp"
 #include "nirslam/photometric/exposure_scale.hpp"
+#include "nirslam/photometric/grey_range_advice.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/frame_limit.hpp"
@@ -151,6 +152,8 @@ int run_calibrate(const CalibrateOptions& options) {
                 estimate->grey_low, estimate->grey_high, estimate->radius_high);
   else
     std::printf("  no back-end estimate: the curves are the initial model, not measured\n");
+  if (const std::optional<GreyRangeAdvice> advice = online_grey_range_advice(*estimate))
+    std::printf("  advice: %s\n", describe(*advice).c_str());
   if (const ReportedExposureScale scale = reported_exposure_scale(exposures.exposure_history()); scale.frames > 0)
     std::printf("  exposures on the reported scale: the estimated chain x %.4f (median over %d frames)\n", scale.factor,
                 scale.frames);

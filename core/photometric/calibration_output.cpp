@@ -13,6 +13,7 @@
 
 #include "nirslam/common/error.hpp"
 #include "nirslam/photometric/exposure_scale.hpp"
+#include "nirslam/photometric/grey_range_advice.hpp"
 
 namespace nirslam {
 
@@ -161,6 +162,7 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
   }
 
   const Eigen::Vector4d& c = estimate.response.coefficients();
+  const std::optional<GreyRangeAdvice> range_advice = online_grey_range_advice(estimate);
   nlohmann::json frames = nlohmann::json::array();
   for (const ExposureSample& s : exposures)
     frames.push_back({{"index", s.frame_index},
@@ -186,6 +188,10 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
        {{"grey_range", estimate.grey_high > estimate.grey_low ? nlohmann::json{estimate.grey_low, estimate.grey_high}
                                                               : nlohmann::json(nullptr)},
         {"vignette_max_radius", estimate.radius_high > 0.0 ? nlohmann::json(estimate.radius_high) : nlohmann::json(nullptr)},
+        // Below grey kAdvisedHighestGrey: how much brighter the images would have to be to measure the
+        // top of the response (grey_range_advice.hpp); null when the samples reach it or nothing was fitted.
+        {"exposure_factor_to_reach_top", range_advice ? nlohmann::json(range_advice->exposure_factor) : nlohmann::json(nullptr)},
+        {"advice", range_advice ? nlohmann::json(describe(*range_advice)) : nlohmann::json(nullptr)},
         {"note", "1st-99th percentile of the back end's samples: outside the grey range the inverse response is the "
                  "straightest continuation of log G over log I, beyond the radius V is the model's continuation "
                  "(straight over r^2 with vignette_rim_curvature_weight); neither is measured there; null: no "

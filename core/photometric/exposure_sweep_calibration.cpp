@@ -600,12 +600,8 @@ ExposureSweepResult fit_sweep(const std::vector<cv::Mat>& images, const SweepExp
 }  // namespace
 
 double sweep_exposure_factor(const ExposureSweepResult& result) {
-  if (!result.ok || !(result.highest_grey > 0.0) || result.highest_grey >= kSweepAdvisedHighestGrey) return 1.0;
-  // Through the fitted response: exact up to highest_grey, its continuation (a few per cent off at
-  // most on the simulated sweeps) from there to the target.
-  const double now = result.response.inverse(result.highest_grey / 255.0);
-  const double wanted = result.response.inverse(kSweepTargetHighestGrey / 255.0);
-  return now > 0.0 && wanted > now ? wanted / now : 1.0;
+  if (!result.ok || result.highest_grey >= kSweepAdvisedHighestGrey) return 1.0;
+  return exposure_factor_to_reach(result.response, result.highest_grey, kSweepTargetHighestGrey);
 }
 
 std::string sweep_range_advice(const ExposureSweepResult& result) {

@@ -549,6 +549,7 @@ std::shared_ptr<const PhotometricView> SlamPipeline::photometric_view() {
     view->grey_low = estimate->grey_low;
     view->grey_high = estimate->grey_high;
     view->radius_high = estimate->radius_high;
+    view->range_advice = online_grey_range_advice(*estimate);
     view->lamp_not_modelled = !corrects_illuminator(options_.mode) && last_illuminator_power_w_ && *last_illuminator_power_w_ > 0.0;
     if (light_distances_)
       view->lamp_term = light_distance_points_ > 0

@@ -94,6 +94,48 @@ TEST(CalibrateCommand, TooShortForAnEstimateSaysNothingWasMeasured) {
   const auto calibration = nlohmann::json::parse(calibration_file);
   EXPECT_TRUE(calibration.at("observed").at("grey_range").is_null());
   EXPECT_TRUE(calibration.at("observed").at("vignette_max_radius").is_null());
+  EXPECT_TRUE(calibration.at("observed").at("advice").is_null()) << "nothing fitted, nothing to advise";
+  EXPECT_EQ(r.output.find("advice:"), std::string::npos) << r.output;
+}
+
+// A log response seen only up to grey ~144 (the simulator's auto exposure aims at a mean of
+// 0.35): above that the curve is the model's continuation and the response is ~15 grey levels
+// off over all levels, so the output says how much brighter the images would have to be. Taken
+// that much brighter (the auto exposure's target moved so that its exposures grow by the factor),
+// the samples reach higher and the response over all levels is several times closer.
+TEST(CalibrateCommand, ImagesThatStopShortOfTheTopGetAdviceAndFollowingItMeasuresTheResponse) {
+  const auto dir = fresh_dir("calibrate_range_advice");
+  const std::string exe = NIRSLAM_EXECUTABLE;
+  const std::string scene = " simulate --scene room --power 0 --ambient 0.4 --texture distance-independent --frames 80 "
+                            "--width 320 --height 240 --response log";
+  const auto calibrate = [&](const std::string& name, double target_grey) {
+    const auto sim = run_command(exe + scene + " --target-grey " + std::to_string(target_grey) + " --out " +
+                                 (dir / name).string());
+    EXPECT_EQ(sim.exit_code, 0) << sim.output;
+    const auto r = run_command(exe + " calibrate " + (dir / name).string() + " --out " + (dir / (name + "_out")).string());
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    std::ifstream file(dir / (name + "_out") / "calibration.json");
+    return std::make_pair(r.output, nlohmann::json::parse(file));
+  };
+  const auto [dark_output, dark] = calibrate("dark", 0.35);
+  EXPECT_NE(dark_output.find("advice: the images reach grey"), std::string::npos) << dark_output;
+  const double dark_top = dark.at("observed").at("grey_range").at(1);
+  const double dark_error = dark.at("errors").at("response_mean_grey");
+  EXPECT_LT(dark_top, 170.0);
+  EXPECT_GT(dark_error, 8.0) << "the continuation above grey " << dark_top;
+  const double factor = dark.at("observed").at("exposure_factor_to_reach_top");
+  EXPECT_GT(factor, 1.8);
+  EXPECT_LT(factor, 4.0);
+  EXPECT_TRUE(dark.at("observed").at("advice").is_string());
+
+  // The auto exposure's target grey whose exposure is `factor` times the first's, through the true curve.
+  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Log);
+  const double bright_target = truth(factor * truth.inverse(0.35));
+  const auto [bright_output, bright] = calibrate("bright", bright_target);
+  const double bright_top = bright.at("observed").at("grey_range").at(1);
+  const double bright_error = bright.at("errors").at("response_mean_grey");
+  EXPECT_GT(bright_top, dark_top + 40.0);
+  EXPECT_LT(bright_error, 0.4 * dark_error) << bright_output;
 }
 
 TEST(CalibrateCommand, LensVignetteOfAnotherSizeIsNamed) {

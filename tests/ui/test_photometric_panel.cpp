@@ -274,6 +274,37 @@ TEST_F(PhotometricPanelTest, UnmeasuredPartsOfTheCurvesAreShaded) {
   EXPECT_EQ(at(shot, map.centre().x, map.centre().y), at(before, map.centre().x, map.centre().y));
 }
 
+// When the fitted response's samples stop short of the top, the status row says how far they
+// reach and how much brighter the images would have to be, in amber; nothing when they reach it.
+TEST_F(PhotometricPanelTest, SamplesThatStopShortOfTheTopGetTheExposureAdvice) {
+  Snapshot snapshot;
+  auto view = estimate_view();
+  view->lamp_term.clear();
+  view->grey_low = 18.0;
+  view->grey_high = 144.0;
+  snapshot.photometric = view;
+  const auto amber_pixels = [&](const cv::Mat& shot, const ScreenRect& rect) {
+    int n = 0;
+    for (int y = static_cast<int>(rect.min.y); y < static_cast<int>(rect.max.y); ++y)
+      for (int x = static_cast<int>(rect.min.x); x < static_cast<int>(rect.max.x); ++x)
+        n += near(pixel(shot, x, y), colours::state_paused, 40);
+    return n;
+  };
+  PhotometricPanel quiet;
+  const cv::Mat without = render(quiet, snapshot);
+  EXPECT_TRUE(quiet.range_advice_rect().empty());
+
+  view->range_advice = GreyRangeAdvice{144.0, 230.0, 3.1};
+  PhotometricPanel advised;
+  const cv::Mat with = render(advised, snapshot);
+  const ScreenRect& rect = advised.range_advice_rect();
+  ASSERT_FALSE(rect.empty());
+  EXPECT_LT(rect.max.y, advised.response_plot_rect().min.y) << "in the status row, above the plots";
+  EXPECT_GT(rect.width(), 100.0f) << "a readable part of the text";
+  EXPECT_GT(amber_pixels(with, rect), 60);
+  EXPECT_EQ(amber_pixels(without, rect), 0);
+}
+
 TEST_F(PhotometricPanelTest, SaysSoWhenCalibrationIsOff) {
   Snapshot snapshot;
   snapshot.photometric = std::make_shared<PhotometricView>();  // enabled = false

@@ -510,6 +510,12 @@ TEST(WorkerOnSimulator, PipelineViewsTravelInSnapshotsAndTheFinishHandlerSeesThe
   EXPECT_TRUE(done->photometric->enabled);
   EXPECT_TRUE(done->photometric->true_response.has_value()) << "the simulator's truth is overlaid";
   EXPECT_EQ(done->photometric->exposures.size(), 20u);
+  // The exposure advice comes with the estimate whose samples stop short of the top, and names its top.
+  const PhotometricView& photometric = *done->photometric;
+  const bool stops_short = photometric.model_version > 0 && photometric.grey_high > photometric.grey_low &&
+                           photometric.grey_high < kOnlineAdvisedHighestGrey;
+  EXPECT_EQ(photometric.range_advice.has_value(), stops_short) << photometric.grey_high;
+  if (photometric.range_advice) EXPECT_EQ(photometric.range_advice->highest_grey, photometric.grey_high);
   EXPECT_TRUE(done->trajectory->enabled);
   EXPECT_FALSE(done->trajectory->tracking.empty());
   EXPECT_TRUE(finished_with_calibration.load());

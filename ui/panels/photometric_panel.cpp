@@ -115,7 +115,7 @@ void PhotometricPanel::update_curves(const PhotometricView& view) {
 }
 
 void PhotometricPanel::draw(const Snapshot& snapshot) {
-  response_plot_ = inverse_plot_ = vignette_plot_ = vignette_map_ = exposure_plot_ = {};
+  response_plot_ = inverse_plot_ = vignette_plot_ = vignette_map_ = exposure_plot_ = range_advice_ = {};
   const PhotometricView* view = snapshot.photometric.get();
   if (view == nullptr || !view->enabled) {
     const ImVec2 avail = ImGui::GetContentRegionAvail();
@@ -155,6 +155,20 @@ void PhotometricPanel::draw_status(const PhotometricView& view) {
   const bool with_unmeasured = view.grey_high > view.grey_low || view.radius_high > 0.0;
   same_line_if_fits(legend_width(with_truth, with_unmeasured), kGap);
   legend(with_truth, with_unmeasured);
+  if (view.range_advice) {
+    // The response above the brightest samples is the model's continuation, and with it the
+    // irradiance scale: the operator can fix that by showing the camera brighter images.
+    const GreyRangeAdvice& advice = *view.range_advice;
+    const std::string text = fmt::format("response measured to grey {:.0f}: {:.1f}x brighter images would measure the rest",
+                                         advice.highest_grey, advice.exposure_factor);
+    same_line_if_fits(ImGui::CalcTextSize(text.c_str()).x, kGap);  // whole, on a line of its own if need be
+    elided_text(text, colours::state_paused);
+    range_advice_ = last_item_rect();
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("%s.\nWays there: a longer exposure or more gain for a while (auto exposure locked, Camera tab), a\n"
+                        "brighter view, or the response from an illuminator sweep (Illumination tab), held.",
+                        describe(advice).c_str());
+  }
   if (view.lamp_not_modelled) {
     const char* text = "lamp on, not modelled";
     same_line_if_fits(ImGui::CalcTextSize(text).x, kGap);

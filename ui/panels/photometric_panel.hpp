@@ -10,7 +10,8 @@ namespace nirslam::ui {
 // Photometric: what the online calibration currently believes, beside the truth when the source
 // knows it (the simulator).
 //   - status line: converged / optimising / waiting (with the reason), model version, keyframes
-//     and points in the back end, and how the gamma/scale ambiguity was resolved,
+//     and points in the back end, how the gamma/scale ambiguity was resolved, and when the fitted
+//     response's samples stop short of the top, how much brighter the images would have to be,
 //   - the response f (normalised irradiance -> grey) and the inverse response G (grey -> irradiance,
 //     the pcalib.txt table), the vignette V(r) as a radial plot and as a map over the image,
 //   - the exposure of every frame over time (estimate, and reported or true value), keyframes marked.
@@ -25,6 +26,8 @@ public:
   const ScreenRect& vignette_plot_rect() const { return vignette_plot_; }
   const ScreenRect& vignette_map_rect() const { return vignette_map_; }
   const ScreenRect& exposure_plot_rect() const { return exposure_plot_; }
+  // The status row's advice when the response's samples stop short of the top (empty when none).
+  const ScreenRect& range_advice_rect() const { return range_advice_; }
 
   static constexpr int kCurveSamples = 128;
 
@@ -40,6 +43,7 @@ private:
   ScreenRect vignette_plot_;
   ScreenRect vignette_map_;
   ScreenRect exposure_plot_;
+  ScreenRect range_advice_;
   // Cached curves of the estimate (and truth) that were last drawn.
   const PhotometricView* cached_for_ = nullptr;
   int cached_version_ = -1;

@@ -16,6 +16,7 @@
 #include <gtest/gtest.h>
 
 #include "nirslam/photometric/calibration_output.hpp"
+#include "nirslam/photometric/grey_range_advice.hpp"
 #include "nirslam/photometric/illumination_factor.hpp"
 #include "nirslam/photometric/online_calibration.hpp"
 #include "nirslam/pipeline/light_distance_map.hpp"
@@ -453,6 +454,9 @@ void print(const char* label, const AccuracyRun& r) {
               100.0 * r.errors.exposure_max_relative, 100.0 * r.first_frame_exposure_median,
               100.0 * r.errors.exposure_median_relative_aligned);
   if (r.estimate->beam_exponent) std::printf("%-16s beam exponent m %.3f\n", label, *r.estimate->beam_exponent);
+  if (const std::optional<GreyRangeAdvice> advice = online_grey_range_advice(*r.estimate))
+    std::printf("%-16s advice: images %.2fx brighter (the samples' top at grey %.0f)\n", label, advice->exposure_factor,
+                advice->highest_grey);
   if (r.estimate->ambiguity == AmbiguityResolution::Normalisation)
     std::printf("%-16s response modulo gamma %5.2f / %6.2f gl (%s)\n", label, r.gamma_free_mean_grey,
                 r.gamma_free_max_grey, r.estimate->ambiguity_detail.c_str());

@@ -47,6 +47,7 @@
 #include <Eigen/Core>
 #include <opencv2/core/mat.hpp>
 
+#include "nirslam/photometric/grey_range_advice.hpp"
 #include "nirslam/photometric/response_model.hpp"
 
 namespace nirslam {
@@ -107,14 +108,8 @@ struct ExposureSweepResult {
   int weakest_image = -1;
 };
 
-// Below this highest_grey a fitted response is advised against as over all levels (measured on
-// simulated power sweeps, gamma: 101 -> 2.6 grey levels mean error, 138-157 -> 0.2-1.2, 166-241
-// -> 0.01-0.2).
-inline constexpr double kSweepAdvisedHighestGrey = 180.0;
-// Where a sweep's top is aimed when it is taken again (clipping stays rare).
-inline constexpr double kSweepTargetHighestGrey = 220.0;
-// The exposure x gain factor that would take highest_grey to kSweepTargetHighestGrey (1 when the
-// sweep reached kSweepAdvisedHighestGrey or failed).
+// The exposure x gain factor that would take highest_grey to kSweepTargetHighestGrey (1 when the sweep
+// reached kSweepAdvisedHighestGrey or failed; grey_range_advice.hpp).
 double sweep_exposure_factor(const ExposureSweepResult& result);
 // What to do when the sweep's observations stop short of the top (empty when they do not).
 std::string sweep_range_advice(const ExposureSweepResult& result);

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "nirslam/photometric/grey_range_advice.hpp"
 #include "nirslam/photometric/response_model.hpp"
 
 namespace nirslam {
@@ -45,6 +46,9 @@ struct PhotometricView {
   double grey_low = 0.0;
   double grey_high = 0.0;
   double radius_high = 0.0;
+  // When the fitted response's samples stop short of the top: how far they reach and how much
+  // brighter the images would have to be to measure the rest (grey_range_advice.hpp).
+  std::optional<GreyRangeAdvice> range_advice;
   // The lamp's distance term (Illuminated mode): from how many odometry points the last frame's
   // distances came, or what it waits for; empty when the mode has no such term.
   std::string lamp_term;

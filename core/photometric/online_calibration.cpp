@@ -121,6 +121,14 @@ OnlinePhotometricCalibration::~OnlinePhotometricCalibration() {
   if (thread_.joinable()) thread_.join();
 }
 
+double OnlinePhotometricCalibration::keyframe_saturation_level(bool lamp_modelled) const {
+  if (options_.keyframe_saturation_level >= 0.0) return options_.keyframe_saturation_level;
+  const PhotometricResidualForm form = lamp_modelled ? options_.backend.lit_residual_form : options_.backend.residual_form;
+  return options_.backend.clip_noise_grey > 0.0 && form == PhotometricResidualForm::PredictedGrey
+             ? kFullScaleSaturationLevel
+             : options_.tracker.saturation_level;
+}
+
 std::shared_ptr<const PhotometricEstimate> OnlinePhotometricCalibration::initial_estimate() const {
   auto e = std::make_shared<PhotometricEstimate>();
   e->response = backend_.response();
@@ -320,8 +328,7 @@ CorrectedFrame OnlinePhotometricCalibration::process_frame(const Frame& frame, c
       job.kind = Job::Keyframe;
       job.keyframe = make_photometric_keyframe(tracked, frame.timestamp_s, known ? *reported : *out.exposure, known,
                                                options_.tracker.black_level,
-                                               options_.keyframe_saturation_level < 0.0 ? options_.tracker.saturation_level
-                                                                                          : options_.keyframe_saturation_level,
+                                               keyframe_saturation_level(log_illumination != nullptr),
                                                log_illumination, options_.keyframes_follow_deformation);
       if (!options_.background_thread) {
         run_job(job);

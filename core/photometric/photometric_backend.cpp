@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <numbers>
 #include <optional>
 #include <stdexcept>
 #include <unordered_map>
@@ -94,17 +95,38 @@ double predicted_sqrt_irradiance(double irradiance_grey) {
 // The predicted grey value at irradiance e V a L (grey-level units), against the observed one:
 // u = sqrt(X) where it is linearised, the basis h(u), f'(u) and s = grey - 255 f(u). One formula
 // for predicted_grey_residual(), the cost and the LM step.
+// With clip_noise_grey > 0 the prediction is the expected value of a sample that did not clip
+// (PhotometricBackendOptions::clip_noise_grey), and slope and h carry its derivative in mu.
 struct GreyPrediction {
   double u = 0.0, slope = 0.0, s = 0.0;
   Eigen::Vector4d h = Eigen::Vector4d::Zero();
 };
-GreyPrediction predict_grey(const Eigen::Vector4d& c, double irradiance_grey, double grey) {
+// Beyond this many standard deviations below full scale the truncation shifts a sample by less
+// than 1e-8 of them.
+constexpr double kClipNoiseNegligibleZ = 6.0;
+GreyPrediction predict_grey(const Eigen::Vector4d& c, double irradiance_grey, double grey, double clip_noise_grey) {
   GreyPrediction p;
   p.u = predicted_sqrt_irradiance(irradiance_grey);
   Eigen::Vector4d dh;
   response_basis_in_sqrt_irradiance(p.u, p.h, dh);
   p.slope = 1.0 + c.dot(dh);
-  p.s = grey - 255.0 * (p.u + c.dot(p.h));
+  const double mu = 255.0 * (p.u + c.dot(p.h));
+  p.s = grey - mu;
+  if (clip_noise_grey > 0.0) {
+    // A normal sample is one that did not clip: near full scale its expected value is that of a
+    // normal truncated at 255, mu - sigma lambda(z), z = (255 - mu) / sigma, lambda = phi / Phi (the
+    // inverse Mills ratio), with slope g = d/dmu = 1 - lambda (z + lambda) in (0, 1].
+    const double z = (255.0 - mu) / clip_noise_grey;
+    if (z < kClipNoiseNegligibleZ) {
+      const double Phi = 0.5 * std::erfc(-z / std::numbers::sqrt2);
+      const double phi = std::exp(-0.5 * z * z) * (0.5 * std::numbers::inv_sqrtpi * std::numbers::sqrt2);
+      const double lambda = Phi > 1e-300 ? phi / Phi : -z;  // -z: its limit far above full scale
+      const double g = std::max(1.0 - lambda * (z + lambda), 1e-6);
+      p.s += clip_noise_grey * lambda;
+      p.slope *= g;
+      p.h *= g;
+    }
+  }
   return p;
 }
 
@@ -243,11 +265,12 @@ double photometric_residual(const InverseResponse& inverse, const Eigen::Vector3
 }
 
 double predicted_grey_residual(const Eigen::Vector4d& c, const Eigen::Vector3d& v, double exposure, double radiance,
-                               double grey, double radius, double illumination, PhotometricJacobian* jacobian) {
+                               double grey, double radius, double illumination, PhotometricJacobian* jacobian,
+                               double clip_noise_grey) {
   const double r2 = radius * radius;
   const double V = 1.0 + r2 * (v[0] + r2 * (v[1] + r2 * v[2]));
   const double eVa = exposure * V * illumination;
-  const GreyPrediction p = predict_grey(c, eVa * radiance, grey);
+  const GreyPrediction p = predict_grey(c, eVa * radiance, grey, clip_noise_grey);
   if (jacobian != nullptr) {
     const double k = p.slope / (2.0 * p.u);  // dI/dG at the prediction
     jacobian->head<4>() = -255.0 * p.h;
@@ -263,11 +286,11 @@ double predicted_grey_residual(const Eigen::Vector4d& c, const Eigen::Vector3d& 
 
 double ambient_grey_residual(const Eigen::Vector4d& c, const Eigen::Vector3d& v, double exposure, double radiance,
                              double kappa, double ambient_weight, double grey, double radius, double illumination,
-                             AmbientJacobian* jacobian) {
+                             AmbientJacobian* jacobian, double clip_noise_grey) {
   const double r2 = radius * radius;
   const double V = 1.0 + r2 * (v[0] + r2 * (v[1] + r2 * v[2]));
   const double lit = V * illumination + kappa * ambient_weight;
-  const GreyPrediction p = predict_grey(c, exposure * lit * radiance, grey);
+  const GreyPrediction p = predict_grey(c, exposure * lit * radiance, grey, clip_noise_grey);
   if (jacobian != nullptr) {
     const double k = p.slope / (2.0 * p.u);
     jacobian->head<4>() = -255.0 * p.h;
@@ -450,10 +473,14 @@ void PhotometricBackend::build_problem(const std::vector<int>& window) {
           if (modelled && !keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])].illumination_modelled) continue;
           if (std::isnan(log_reference)) log_reference = o->log_illumination;
           const PhotometricKeyframe& kf = keyframes_[static_cast<std::size_t>(window[static_cast<std::size_t>(w)])];
+          // A bound at full scale itself, where G(255) = 255 ties the irradiance scale, takes no margin
+          // (measured: clip_noise_grey in the header).
+          const double saturation_margin =
+              kf.saturation_grey >= 255.0 * kFullScaleSaturationLevel - 1e-3 ? 0.0 : options_.clip_bound_margin_grey;
           const Eigen::Vector2d p = o->pixel(k);
           Observation ob;
           ob.keyframe = w;
-          ob.grey = bound > 0   ? static_cast<double>(kf.saturation_grey) - options_.clip_bound_margin_grey
+          ob.grey = bound > 0   ? static_cast<double>(kf.saturation_grey) - saturation_margin
                     : bound < 0 ? static_cast<double>(kf.black_grey) + options_.clip_bound_margin_grey
                                 : static_cast<double>(grey);
           ob.bound = bound;
@@ -545,7 +572,7 @@ double PhotometricBackend::scaled_residual(const State& state, std::size_t point
   const Observation& o = observations_[i];
   const double irradiance = lit_exposure(state, o) * state.radiance[point];
   if (predicts_grey()) {
-    const GreyPrediction p = predict_grey(state.c, irradiance, o.grey);
+    const GreyPrediction p = predict_grey(state.c, irradiance, o.grey, clip_noise(o));
     slope = p.slope;
     if (u_at != nullptr) *u_at = p.u;
     return p.s;
@@ -1174,7 +1201,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           // derivatives in v and e below hold for both (PhotometricResidualForm).
           GreyPrediction at;
           if (predicted) {
-            at = predict_grey(st.c, eV * L, o.grey);
+            at = predict_grey(st.c, eV * L, o.grey, clip_noise(o));
           } else {
             at.u = st.u[static_cast<std::size_t>(i)];
             Eigen::Vector4d dh;

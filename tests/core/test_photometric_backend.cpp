@@ -140,7 +140,8 @@ struct SyntheticProblem {
 // grey_noise: Gaussian noise of that standard deviation (grey levels) added before rounding to
 // integers, as an 8-bit sensor reads (0: the exact, unrounded model grey values).
 SyntheticProblem synthetic(const ResponseModel& f, const std::function<double(double)>& V, int keyframe_count, int tracks,
-                           bool known, bool moving, double exposure_swing, unsigned seed, double grey_noise = 0.0) {
+                           bool known, bool moving, double exposure_swing, unsigned seed, double grey_noise = 0.0,
+                           bool clip_at_full_scale = false) {
   SyntheticProblem problem;
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
@@ -160,6 +161,7 @@ SyntheticProblem synthetic(const ResponseModel& f, const std::function<double(do
     problem.exposures.push_back(e);
     kf.exposure = known ? e : e * (1.0 + 0.1 * (uniform(rng) - 0.5));
     kf.exposure_known = known;
+    if (clip_at_full_scale) kf.saturation_grey = static_cast<float>(255.0 * kFullScaleSaturationLevel);
     const Eigen::Vector2d shift = moving ? Eigen::Vector2d(120.0 * std::sin(0.31 * k), 90.0 * std::cos(0.23 * k)) : Eigen::Vector2d::Zero();
     for (int t = 0; t < tracks; ++t) {
       KeyframeObservation o;
@@ -172,7 +174,10 @@ SyntheticProblem synthetic(const ResponseModel& f, const std::function<double(do
                          radiance[static_cast<std::size_t>(t * kBackendPixels + p)];
         double grey = 255.0 * f(X);
         if (grey_noise > 0.0) grey = std::round(grey + grey_noise * noise(rng));
-        o.grey[static_cast<std::size_t>(p)] = grey > 3.0 && grey < 250.0 ? static_cast<float>(grey) : -1.0f;
+        if (clip_at_full_scale)  // as a camera clips: at 255, after the noise
+          o.grey[static_cast<std::size_t>(p)] = grey >= 255.0 ? kGreySaturated : grey > 3.0 ? static_cast<float>(grey) : kGreyDark;
+        else
+          o.grey[static_cast<std::size_t>(p)] = grey > 3.0 && grey < 250.0 ? static_cast<float>(grey) : -1.0f;
         o.gradient_sq[static_cast<std::size_t>(p)] = 0.0f;
       }
       kf.observations.push_back(o);
@@ -255,6 +260,76 @@ TEST(PhotometricBackend, PredictedGreyResidualIsUnbiasedUnderGreyNoise) {
   const double observed = fit(PhotometricResidualForm::ObservedInverse);
   const double predicted = fit(PhotometricResidualForm::PredictedGrey);
   EXPECT_LT(predicted, 0.5 * observed);
+}
+
+// Samples up to full scale, with 2 grey levels of noise, clipped at 255 after it as a camera clips
+// (the online calibration's keyframes with clip_noise_grey on): a sample whose noise takes it to 255
+// leaves the normal samples, so those left near the top read darker than their irradiance gives.
+// Compared with the plain prediction they bend G at the top and put the irradiance scale off; the
+// truncated normal's mean (clip_noise_grey) takes that into account. A linear response, whose
+// top is not compressed, shows it most (the simulated garage's linear row: 18.2 grey levels).
+// Measured (this test's printout): 2.16 grey levels over all levels without, 0.06 with.
+TEST(PhotometricBackend, ClipNoiseKeepsSamplesNearFullScaleUnbiased) {
+  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Linear);
+  const VignetteModel vignette{Eigen::Vector3d(-0.35, 0.10, -0.05)};
+  const SyntheticProblem problem = synthetic(truth, vignette, 30, 60, true, true, 1.3, 5, 2.0, true);
+  int saturated = 0, normal = 0;
+  for (const PhotometricKeyframe& kf : problem.keyframes)
+    for (const KeyframeObservation& o : kf.observations)
+      for (const float grey : o.grey) (grey == kGreySaturated ? saturated : normal) += grey == kGreySaturated || grey >= 0.0f;
+  ASSERT_GT(saturated, 200) << "the brightest keyframes clip";
+  const auto fit = [&](double clip_noise_grey) {
+    PhotometricBackendOptions options;
+    options.clip_noise_grey = clip_noise_grey;
+    PhotometricBackend backend(options);
+    for (PhotometricKeyframe kf : problem.keyframes) backend.add_keyframe(std::move(kf));
+    const BackendStep step = backend.optimise(100, true);
+    EXPECT_TRUE(step.ok && step.response_estimated) << step.status;
+    const auto estimate = backend.response().inverse_table(256), exact = truth.inverse_table(256);
+    double mean = 0.0;
+    for (std::size_t i = 0; i < 256; ++i) mean += std::abs(estimate[i] - exact[i]) / 256.0;
+    std::printf("clip noise %.1f: %d normal and %d saturated samples, grey %.0f-%.0f, response %.2f grey levels mean "
+                "over all levels, max %.2f\n",
+                clip_noise_grey, normal, saturated, step.grey_low, step.grey_high, mean,
+                inverse_response_max_error(backend.response(), truth));
+    return mean;
+  };
+  const double plain = fit(0.0);
+  const double modelled = fit(2.0);
+  EXPECT_GT(plain, 1.0);
+  EXPECT_LT(modelled, 0.3);
+}
+
+// The predicted grey residual with the clip noise: near full scale the prediction is the truncated
+// normal's mean, below grey 255 - 6 sigma the plain one, and its Jacobian is that of the mean.
+TEST(PhotometricBackend, ClipNoiseResidualAndItsJacobian) {
+  const Eigen::Vector3d v(-0.3, 0.08, -0.04);
+  const ResponseModel response = ResponseModel::from_preset(ResponsePreset::Gamma);
+  const Eigen::Vector4d c = response.coefficients();
+  const double radius = 0.4, exposure = 5.0, sigma = 2.0;
+  const double V = VignetteModel{v}(radius);
+  for (const double mu : {200.0, 245.0, 250.0, 253.0, 254.5}) {
+    const double radiance = 255.0 * response.inverse(mu / 255.0) / (exposure * V);
+    const double plain = predicted_grey_residual(c, v, exposure, radiance, 240.0, radius);
+    const double modelled = predicted_grey_residual(c, v, exposure, radiance, 240.0, radius, 1.0, nullptr, sigma);
+    // s = grey - mean: the mean of a normal at mu cut at 255 lies below mu, by sigma lambda(z).
+    const double z = (255.0 - mu) / sigma;
+    const double lambda = std::exp(-0.5 * z * z) / std::sqrt(2.0 * M_PI) / (0.5 * std::erfc(-z / std::sqrt(2.0)));
+    EXPECT_NEAR(modelled - plain, sigma * lambda, 1e-6) << "mu " << mu;
+    if (mu < 255.0 - 6.0 * sigma) {
+      EXPECT_NEAR(modelled, plain, 1e-12);
+    }
+    for (const double grey : {230.0, 252.0}) {
+      PhotometricJacobian J;
+      predicted_grey_residual(c, v, exposure, radiance, grey, radius, 1.0, &J, sigma);
+      Eigen::Matrix<double, 9, 1> p;
+      p << c, v, exposure, radiance;
+      const auto residual = [&](const Eigen::Matrix<double, 9, 1>& q) {
+        return predicted_grey_residual(q.head<4>(), q.segment<3>(4), q[7], q[8], grey, radius, 1.0, nullptr, sigma);
+      };
+      expect_central_differences(p, J, residual, "mu", mu, "grey", grey);
+    }
+  }
 }
 
 // One track in eight whose grid pixels see something other than one surface point (a depth edge

@@ -515,7 +515,9 @@ TEST(WorkerOnSimulator, PipelineViewsTravelInSnapshotsAndTheFinishHandlerSeesThe
   const bool stops_short = photometric.model_version > 0 && photometric.grey_high > photometric.grey_low &&
                            photometric.grey_high < kOnlineAdvisedHighestGrey;
   EXPECT_EQ(photometric.range_advice.has_value(), stops_short) << photometric.grey_high;
-  if (photometric.range_advice) EXPECT_EQ(photometric.range_advice->highest_grey, photometric.grey_high);
+  if (photometric.range_advice) {
+    EXPECT_EQ(photometric.range_advice->highest_grey, photometric.grey_high);
+  }
   EXPECT_TRUE(done->trajectory->enabled);
   EXPECT_FALSE(done->trajectory->tracking.empty());
   EXPECT_TRUE(finished_with_calibration.load());

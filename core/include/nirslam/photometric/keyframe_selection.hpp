@@ -43,6 +43,10 @@ inline constexpr float kGreyDark = -1.0f;
 inline constexpr float kGreySaturated = -2.0f;
 inline constexpr float kGreyMissing = -3.0f;
 inline constexpr int kBackendPixelPitch = 3;
+// A saturation level at full scale itself: an 8-bit sample counts as saturated at 255 only (half a
+// grey level of margin for interpolated values), so the normal samples reach 254
+// (PhotometricBackendOptions::clip_noise_grey, which models what clipping does to them).
+inline constexpr double kFullScaleSaturationLevel = 254.5 / 255.0;
 // Offset (dx, dy) in pixels of back-end pixel k from the track position.
 Eigen::Vector2d backend_pixel_offset(int k);
 

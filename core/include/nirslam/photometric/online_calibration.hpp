@@ -178,9 +178,11 @@ struct OnlineCalibrationOptions {
   // use_reported_exposures), not on the front end's estimate (see online_calibration.cpp).
   bool keyframes_by_reported_exposure = true;
   // Fraction of full scale at or above which a keyframe sample counts as saturated (the back end's
-  // one-sided constraint e V a L >= G(level), photometric_backend.hpp); negative: the tracker's
-  // saturation_level. Only the true clip (full scale) says something about the irradiance scale:
-  // at a level inside the observed range both sides of the bound scale with it.
+  // one-sided constraint e V a L >= G(level), photometric_backend.hpp). Negative: full scale
+  // (kFullScaleSaturationLevel) where the back end models what clipping does to the samples below it
+  // (backend.clip_noise_grey > 0 with the predicted-grey residual, without the lamp's factor), else
+  // the tracker's saturation_level. Only the true clip (full scale) says something about the
+  // irradiance scale: at a level inside the observed range both sides of the bound scale with it.
   double keyframe_saturation_level = -1.0;
 };
 
@@ -246,6 +248,7 @@ private:
   std::shared_ptr<const PhotometricEstimate> initial_estimate() const;
   CorrectedFrame process_frame(const Frame& frame, const FrameIllumination* illumination);
   void correct(const Frame& frame, const TrackedFrame& tracked, cv::Mat& out);
+  double keyframe_saturation_level(bool lamp_modelled) const;
 
   OnlineCalibrationOptions options_;
 

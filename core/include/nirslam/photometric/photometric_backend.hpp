@@ -171,9 +171,11 @@ double clip_bound_residual(const InverseResponse& inverse, const Eigen::Vector3d
 // variables through G(grey) (see PhotometricResidualForm). With a jacobian, ds / d(c, v, e, L) in
 // grey levels: -255 h(u), -k e a L r^2j, -k V a L, -k e V a, with k = f'(u) / (2u) = dI/dG at the
 // prediction.
+// With clip_noise_grey > 0 the prediction is the expected value of a sample that did not clip
+// (PhotometricBackendOptions::clip_noise_grey), and the Jacobian is that of this value.
 double predicted_grey_residual(const Eigen::Vector4d& c, const Eigen::Vector3d& v, double exposure, double radiance,
                                double grey, double radius, double illumination = 1.0,
-                               PhotometricJacobian* jacobian = nullptr);
+                               PhotometricJacobian* jacobian = nullptr, double clip_noise_grey = 0.0);
 
 // The grey-domain residual with ambient light (PhotometricBackendOptions::lit_ambient): a point
 // takes the lamp's light through the halo factor V and the lamp factor a, and light that is not
@@ -189,7 +191,7 @@ double predicted_grey_residual(const Eigen::Vector4d& c, const Eigen::Vector3d& 
 using AmbientJacobian = Eigen::Matrix<double, 10, 1>;
 double ambient_grey_residual(const Eigen::Vector4d& c, const Eigen::Vector3d& v, double exposure, double radiance,
                              double kappa, double ambient_weight, double grey, double radius, double illumination,
-                             AmbientJacobian* jacobian = nullptr);
+                             AmbientJacobian* jacobian = nullptr, double clip_noise_grey = 0.0);
 
 // A plausible vignette by construction (the back end's "monotone" steps, see
 // PhotometricBackendOptions::lit_vignette_steps). With t = r^2, V = 1 + v1 t + v2 t^2 + v3 t^3
@@ -317,6 +319,26 @@ struct PhotometricBackendOptions {
   // response / vignette / exposure 2 / 7 / 10 and 2 / 8 / 10, bounds violated at the end 30 % and
   // 18 % of them; with the default exposure margin 3 moves no row by more than 0.1 grey levels.
   double clip_bound_margin_grey = 3.0;
+  // The noise of a keyframe sample near full scale, grey levels (0: off); only where the residual
+  // predicts the grey value (PhotometricResidualForm::PredictedGrey). A sample whose noise takes it
+  // to full scale clips and leaves the normal samples, so those left near the top read darker than
+  // their irradiance gives (a truncated normal): compared with the plain prediction mu they bend G
+  // flat at the top and put the irradiance scale off. With it the prediction is the truncated
+  // normal's mean, mu - sigma lambda((255 - mu) / sigma) (lambda the inverse Mills ratio), so the
+  // normal samples can reach full scale: the online calibration then keeps them up to grey 254
+  // (OnlineCalibrationOptions::keyframe_saturation_level) and bounds the clipped ones at full scale
+  // itself, with no margin, where G(255) = 255 ties the scale. Measured on the constant-radiance
+  // table (seed 1; README "Photometric calibration accuracy"): with the default auto exposure only
+  // the two linear rows that clip change (the street 0.62 -> 0.47, the garage 1.71 -> 1.82 grey
+  // levels); with a brighter one (0.55), whose frames clip in 12 of 16 rows, the response over all
+  // levels 2.85 -> 2.24 on average, 11 rows under 2 / 10 against 9 (the garage's log 3.56 -> 0.97,
+  // filmic 8.47 -> 6.40, the street's filmic 3.58 -> 1.51, the tunnel's 8.19 -> 5.84). On synthetic
+  // keyframes with 2 grey levels of noise and a linear response 2.16 -> 0.06 grey levels
+  // (test_photometric_backend.cpp). Samples up to 254 without it put the garage's linear row at
+  // 18.2 grey levels. The clipped samples' bounds take no correction (they bound the noise-free
+  // irradiance); with it there too: 2.23 at sigma 1.5 and 2, 2.83 at 3 (the simulator has 2.5 grey
+  // levels per pixel at full scale, a sample is bilinear between four pixels).
+  double clip_noise_grey = 1.5;
   double min_exposure_ratio = 1.15;   // max/min exposure in the window below which f is not estimated
   // ... and the fraction of the window's keyframes whose exposure is at least sqrt(min_exposure_ratio)
   // from the window's median below which it is not either. Under the co-located lamp the
@@ -552,6 +574,9 @@ private:
   double ambient_ratio_ = 0.0;  // kappa, kept between updates
   // e (V a + kappa w) of observation o: what multiplies the radiance.
   double lit_exposure(const State& state, const Observation& o) const;
+  // The noise model of a normal sample near full scale (options_.clip_noise_grey); a clipped
+  // sample's bound is on its noise-free irradiance and takes none.
+  double clip_noise(const Observation& o) const { return o.bound == 0 ? options_.clip_noise_grey : 0.0; }
   bool predicts_grey() const {
     return (lit_problem_ ? options_.lit_residual_form : options_.residual_form) == PhotometricResidualForm::PredictedGrey;
   }

@@ -115,10 +115,10 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read_flag("track_near_border", pipeline.calibration.tracker.skip_coarse_levels_at_border);
   calibration.read_flag("align_first_patch", pipeline.calibration.tracker.align_reference_affine);
   calibration.read<double>("vignette_rim_curvature_weight", pipeline.calibration.backend.vignette_rim_curvature_weight, 0.0, 1e6);
-  // The straightness prior on log G above the observed grey range, without and with the lamp's
-  // factor (photometric_backend.hpp, log_curvature_weight and lit_log_curvature_weight).
   // The keyframe samples' noise near full scale (photometric_backend.hpp, clip_noise_grey; 0: off).
   calibration.read<double>("clip_noise_grey", pipeline.calibration.backend.clip_noise_grey, 0.0, 50.0);
+  // The straightness prior on log G above the observed grey range, without and with the lamp's
+  // factor (photometric_backend.hpp, log_curvature_weight and lit_log_curvature_weight).
   calibration.read<double>("response_curvature_weight", pipeline.calibration.backend.log_curvature_weight, 0.0, 1e6);
   calibration.read<double>("lamp_mode_response_curvature_weight", pipeline.calibration.backend.lit_log_curvature_weight, 0.0, 1e6);
   // The back end's residual form, without and with the lamp's factor (photometric_backend.hpp).

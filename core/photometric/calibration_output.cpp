@@ -188,8 +188,8 @@ void write_calibration_output(const fs::path& folder, const PhotometricEstimate&
        {{"grey_range", estimate.grey_high > estimate.grey_low ? nlohmann::json{estimate.grey_low, estimate.grey_high}
                                                               : nlohmann::json(nullptr)},
         {"vignette_max_radius", estimate.radius_high > 0.0 ? nlohmann::json(estimate.radius_high) : nlohmann::json(nullptr)},
-        // Below grey kAdvisedHighestGrey: how much brighter the images would have to be to measure the
-        // top of the response (grey_range_advice.hpp); null when the samples reach it or nothing was fitted.
+        // Below grey kOnlineAdvisedHighestGrey: how much brighter the images would have to be to measure
+        // the top of the response (grey_range_advice.hpp); null when the samples reach it or nothing was fitted.
         {"exposure_factor_to_reach_top", range_advice ? nlohmann::json(range_advice->exposure_factor) : nlohmann::json(nullptr)},
         {"advice", range_advice ? nlohmann::json(describe(*range_advice)) : nlohmann::json(nullptr)},
         {"note", "1st-99th percentile of the back end's samples: outside the grey range the inverse response is the "

@@ -243,6 +243,8 @@ AccuracyRun run(const RenderedSequence& sequence, bool use_reported_exposures, b
   if (std::getenv("NIRSLAM_PHOTOMETRIC_NO_CLIP_BOUNDS") != nullptr) options.backend.saturation_bounds = false;
   if (std::getenv("NIRSLAM_PHOTOMETRIC_BLACK_BOUNDS") != nullptr) options.backend.black_bounds = true;
   if (const char* margin = std::getenv("NIRSLAM_PHOTOMETRIC_CLIP_MARGIN")) options.backend.clip_bound_margin_grey = std::atof(margin);
+  // 0: the back end without the clip noise (and so the keyframes' samples cut at the tracker's 0.97).
+  if (const char* noise = std::getenv("NIRSLAM_PHOTOMETRIC_CLIP_NOISE")) options.backend.clip_noise_grey = std::atof(noise);
   if (const char* level = std::getenv("NIRSLAM_PHOTOMETRIC_KEYFRAME_SATURATION")) options.keyframe_saturation_level = std::atof(level);
   if (const char* w = std::getenv("NIRSLAM_PHOTOMETRIC_RIM_CURVATURE")) options.backend.vignette_rim_curvature_weight = std::atof(w);
   // Inconsistent points left out after each solve (photometric_backend.hpp), without and with the lamp's factor.

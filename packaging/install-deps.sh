@@ -6,6 +6,8 @@ set -euo pipefail
 packages=(
   # toolchain
   build-essential cmake ninja-build pkg-config git python3
+  # the ThreadSanitizer stage of tests/run_all.sh compiles with clang (its runtime is a package of its own)
+  clang-14 libclang-rt-14-dev
   # core
   libeigen3-dev libopencv-dev libceres-dev libv4l-dev libyaml-cpp-dev nlohmann-json3-dev
   libspdlog-dev libcli11-dev libzip-dev libpng-dev libjpeg-dev

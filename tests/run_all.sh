@@ -114,8 +114,18 @@ ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
   ctest --test-dir build-asan --output-on-failure -j"$jobs"
 
 section "ThreadSanitizer: build"
-configure build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DNIRSLAM_SANITIZE=thread -DNIRSLAM_BUILD_UI=OFF \
-  "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG"
+# Clang rather than GCC for this stage: GCC took twice as long to compile the core under
+# ThreadSanitizer (photometric_backend.cpp 44 s at -O2, 41 s at -O1, against 18 s with clang 14
+# at -O1; the stage's build 267 -> 136 s of wall, its tests 25 -> 19 s, 2026-12-07), and a second
+# compiler's warnings (-Werror here too) see what GCC's do not. The GCC-only heap parameters stay
+# out of this configure; a tree configured with another compiler is configured afresh.
+gcc_heap=()
+if [ -f build-tsan/CMakeCache.txt ] && ! grep -q '^CMAKE_CXX_COMPILER:[A-Z]*=.*clang++-14$' build-tsan/CMakeCache.txt; then
+  rm -rf build-tsan
+fi
+configure build-tsan -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
+  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DNIRSLAM_SANITIZE=thread -DNIRSLAM_BUILD_UI=OFF \
+  "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG"
 cmake --build build-tsan -j"$jobs" --target nirslam_worker_tests
 section "ThreadSanitizer: worker tests"
 TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$PWD/tests/tsan-suppressions.txt" \

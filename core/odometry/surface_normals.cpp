@@ -7,6 +7,8 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "nirslam/geometry/symmetric_eigenvalues.hpp"
+
 namespace nirslam::odometry {
 namespace {
 
@@ -29,8 +31,7 @@ std::optional<Eigen::Vector3d> inverse_depth_plane_normal(const LevelCamera& cam
   const double count = normal_matrix(0, 0);
   const Eigen::Vector2d mean = normal_matrix.block<2, 1>(1, 0) / count;
   const Eigen::Matrix2d spread = normal_matrix.block<2, 2>(1, 1) / count - mean * mean.transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> spread_eigen(spread, Eigen::EigenvaluesOnly);
-  const Eigen::Vector2d extent = spread_eigen.eigenvalues();  // ascending
+  const Eigen::Vector2d extent = symmetric_eigenvalues(spread);  // ascending
   if (!(extent[1] > 0.0) || extent[0] < options.min_spread_ratio * extent[1]) return std::nullopt;
   const Eigen::Vector3d plane = normal_matrix.ldlt().solve(rhs);
   if (!plane.allFinite()) return std::nullopt;

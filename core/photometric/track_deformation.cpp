@@ -5,9 +5,9 @@
 #include <cstddef>
 #include <stdexcept>
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
+#include "nirslam/geometry/symmetric_eigenvalues.hpp"
 #include "nirslam/photometric/photometric_tracker.hpp"
 
 namespace nirslam {
@@ -108,8 +108,7 @@ std::optional<Eigen::Matrix2d> TrackDeformation::fit_pairs() {
     }
     if (used < options_.min_neighbours) return false;
     // Neighbours along one line (an edge, a row of corners) leave A across it open.
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(spread / used, Eigen::EigenvaluesOnly);
-    if (!(eigen.eigenvalues()(0) >= options_.min_neighbour_spread_px * options_.min_neighbour_spread_px)) return false;
+    if (!(symmetric_eigenvalues(spread / used)(0) >= options_.min_neighbour_spread_px * options_.min_neighbour_spread_px)) return false;
     model = cross * spread.inverse();
     return true;
   };

@@ -7,6 +7,8 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "nirslam/geometry/symmetric_eigenvalues.hpp"
+
 namespace nirslam {
 
 LightDistanceMap::LightDistanceMap(const CameraModel& camera, LightDistanceMapOptions options)
@@ -123,8 +125,7 @@ std::optional<double> LightDistanceMap::distance_at(const Eigen::Vector2d& pixel
   const double count = normal(0, 0);
   const Eigen::Vector2d mean = normal.block<2, 1>(1, 0) / count;
   const Eigen::Matrix2d spread = normal.block<2, 2>(1, 1) / count - mean * mean.transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> spread_eigen(spread, Eigen::EigenvaluesOnly);
-  if (!(spread_eigen.eigenvalues()[0] > 0.02)) return median;  // (0.14 radius)^2
+  if (!(symmetric_eigenvalues(spread)[0] > 0.02)) return median;  // (0.14 radius)^2
   const Eigen::Vector3d plane = normal.ldlt().solve(rhs);
   // At the pixel; never beyond the inliers' own inverse depths (no extrapolation off an edge).
   const double inverse_depth = std::clamp(plane[0], static_cast<double>(low), static_cast<double>(high));

@@ -18,16 +18,17 @@ namespace {
 namespace fs = std::filesystem;
 
 TEST(SimulateCommand, TunnelAt50WattsWritesASequenceDsoToolsCanRead) {
-  // The command of the issue, as written there.
+  // The command of the issue (issue 3), with 60 frames where it asks for 300: every frame is
+  // rendered and written by the same code, and the 300 took 38 s of the CI's 30 minutes.
   const fs::path out = fresh_dir("simulate_tunnel");
-  const CommandResult r = run_command(nirslam("simulate --scene tunnel --power 50 --frames 300 --out '" + out.string() + "'"));
+  const CommandResult r = run_command(nirslam("simulate --scene tunnel --power 50 --frames 60 --out '" + out.string() + "'"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find(out.string()), std::string::npos) << "says where the output went\n" << r.output;
   for (const char* file : {"times.txt", "camera.txt", "pcalib.txt", "vignette.png", "groundtruth.txt", "groundtruth.json",
-                           "frames.csv", "images/00000.png", "images/00299.png"})
+                           "frames.csv", "images/00000.png", "images/00059.png"})
     EXPECT_TRUE(fs::exists(out / file)) << file;
   TumMonoVoReader reader(out);
-  EXPECT_EQ(reader.info().frame_count, 300u);
+  EXPECT_EQ(reader.info().frame_count, 60u);
   ASSERT_TRUE(reader.camera());
   EXPECT_EQ(reader.camera()->width(), 640);
   EXPECT_EQ(reader.camera()->height(), 480);
@@ -36,14 +37,14 @@ TEST(SimulateCommand, TunnelAt50WattsWritesASequenceDsoToolsCanRead) {
   const auto frame = reader.next();
   ASSERT_TRUE(frame && frame->exposure_ms);
   EXPECT_EQ(frame->image.type(), CV_8UC1);
-  EXPECT_EQ(lines_of(out / "groundtruth.txt").size(), 301u);  // header + 300 poses
+  EXPECT_EQ(lines_of(out / "groundtruth.txt").size(), 61u);  // header + 60 poses
   std::ifstream json_file(out / "groundtruth.json");
   const auto j = nlohmann::json::parse(json_file);
   EXPECT_EQ(j["scene"]["kind"], "tunnel");
   EXPECT_EQ(j["illuminator"]["powers_w"][0], 50.0);
   const auto rows = lines_of(out / "frames.csv");
-  ASSERT_EQ(rows.size(), 301u);
-  EXPECT_NE(rows[300].find(",50.000000,"), std::string::npos) << rows[300];
+  ASSERT_EQ(rows.size(), 61u);
+  EXPECT_NE(rows[60].find(",50.000000,"), std::string::npos) << rows[60];
   fs::remove_all(out);
 }
 

@@ -183,14 +183,16 @@ TEST(OdometrySequence, CorrectedFramesUnderTheLampAsSquareRootWithinOnePercent) 
 // angles, aliases at 1x1 (sim/simulator.hpp), and there the run's scale drift moved between 0.47
 // and 1.02 % of the path with changes of rounding alone (the window's sums regrouped, session 18).
 // Measured (ctest -R OdometrySequence.Vehicle): outdoor 0.38 % (2x2), parking 0.08 % (1x1); the
-// bound is the 1 %.
+// bound is the 1 %. The parking run is left to be run by hand (--gtest_also_run_disabled_tests)
+// to keep CI under 30 minutes: it had the widest margin of the five, the garage stays covered by
+// the hand-held and corrected runs above and the vehicle motion by the street's.
 TEST(OdometrySequence, VehicleOutdoor50WattsWithinOnePercentOfPathLength) {
   expect_within_one_percent(run_simulated(sim::SceneKind::Outdoor, 50.0, 300, false, [](SimulatorOptions& o) {
     o.motion = sim::MotionKind::Vehicle;
     o.supersampling = 2;
   }));
 }
-TEST(OdometrySequence, VehicleParking50WattsWithinOnePercentOfPathLength) {
+TEST(OdometrySequence, DISABLED_VehicleParking50WattsWithinOnePercentOfPathLength) {
   expect_within_one_percent(run_simulated(sim::SceneKind::Parking, 50.0, 300, false,
                                           [](SimulatorOptions& o) { o.motion = sim::MotionKind::Vehicle; }));
 }

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <spdlog/spdlog.h>
@@ -240,13 +241,18 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
   if (!times && !options.power_sweep)
     std::printf("  warning: without exposure times the gamma is pinned only by the response basis; the ratios\n"
                 "           below are self-consistent but not reliable as exposure ratios (pass --times)\n");
-  std::printf("  %-24s %6s %10s %12s %9s %8s  %s\n", "image", "used", "unclipped", "exposure", "ratio", "rms[gl]",
-              "note");
+  // "brightness": the factor on the given exposure that the image's own grey values fit best
+  // (ExposureSweepImage::brightness_exposure_factor); only with given exposures.
+  const bool exposures_given = times.has_value() || options.power_sweep;
+  std::printf("  %-24s %6s %10s %12s %9s %8s %10s  %s\n", "image", "used", "unclipped", "exposure", "ratio", "rms[gl]",
+              exposures_given ? "brightness" : "", "note");
   for (std::size_t j = 0; j < files.size(); ++j) {
     const ExposureSweepImage& info = result.images[j];
-    std::printf("  %-24s %6s %10d %12.6g %9.5g %8.2f  %s\n", files[j].filename().string().c_str(),
+    const std::string brightness =
+        exposures_given && info.used && result.ok ? fmt::format("{:.3f}x", info.brightness_exposure_factor) : "";
+    std::printf("  %-24s %6s %10d %12.6g %9.5g %8.2f %10s  %s\n", files[j].filename().string().c_str(),
                 info.used ? "yes" : "no", info.unclipped_samples, info.exposure, info.ratio, info.residual_rms_grey,
-                info.note.c_str());
+                brightness.c_str(), info.note.c_str());
   }
   const Eigen::Vector4d& c = result.response.coefficients();
   std::printf("  points %d, observations %d, residual %.3f grey levels, %d iterations, monotonic %s\n",
@@ -256,6 +262,18 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
   std::printf("  observed grey range: 1 %% of the samples at %.0f or above\n", result.highest_grey);
   if (const std::string advice = sweep_range_advice(result); !advice.empty())
     std::printf("  warning: %s\n", advice.c_str());
+  if (result.ok && !result.reported_exposure_check.empty()) {
+    std::string named;
+    for (std::size_t j = 0; j < files.size(); ++j)
+      if (result.images[j].brightness_disagrees)
+        named += fmt::format("{}{} ({:.2f}x)", named.empty() ? "" : ", ", files[j].filename().string(),
+                             result.images[j].brightness_exposure_factor);
+    std::printf("  warning: the brightness of %s disagrees with the given exposure%s by that factor (over %.0f %% and\n"
+                "           over the sweep's own scatter): a camera that reports its exposure control's value rather\n"
+                "           than the frame's own (read back late, or applied frames later) does this, and it bends the\n"
+                "           response; leave such images out or give their true exposures\n",
+                named.c_str(), options.power_sweep ? " x power" : "", 100.0 * (kReportedExposureTolerance - 1.0));
+  }
   std::optional<AmbientShare> ambient;
   if (lamp_off && weakest && result.ok)
     ambient = ambient_share(images[*lamp_off], sweep_frames[*lamp_off].exposure, images[*weakest],
@@ -290,6 +308,9 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
                              {"ratio", info.ratio},
                              {"unclipped_samples", info.unclipped_samples},
                              {"residual_rms_grey", info.residual_rms_grey},
+                             {"brightness_exposure_factor", exposures_given && info.used
+                                                                ? nlohmann::json(info.brightness_exposure_factor)
+                                                                : nlohmann::json()},
                              {"note", info.note}});
     }
     const nlohmann::json summary = {
@@ -305,6 +326,9 @@ int run_calibrate_sweep(const CalibrateSweepOptions& options) {
         {"reference_image", files[static_cast<std::size_t>(result.reference_image)].filename().string()},
         {"residual_rms_grey", result.residual_rms_grey},
         {"highest_grey", result.highest_grey},
+        {"reported_exposure_check", result.reported_exposure_check.empty()
+                                        ? nlohmann::json(nullptr)
+                                        : nlohmann::json(result.reported_exposure_check)},
         {"points", result.point_count},
         {"observations", result.observation_count},
         {"images", images_json}};

@@ -45,6 +45,45 @@ TEST(CalibrateSweepCommand, CanonStackWithTimesWritesMonotonicPcalibAndJson) {
   ASSERT_EQ(summary.at("images").size(), 13u);
   EXPECT_FALSE(summary.at("images")[12].at("used").get<bool>());  // img13, 1/1000 s: nearly black
   EXPECT_NEAR(summary.at("images")[1].at("ratio").get<double>(), 10.0 / 13.0, 1e-9);
+  EXPECT_TRUE(summary.at("reported_exposure_check").is_null()) << summary.at("reported_exposure_check");
+  EXPECT_EQ(r.output.find("warning: the brightness of"), std::string::npos) << r.output;
+}
+
+// A shutter time that is not the image's own (img05's 1 s given as 2 s, a whole stop: what a
+// camera reporting its previous setting gives) is named with the factor its brightness says.
+TEST(CalibrateSweepCommand, AnExposureTheBrightnessDisagreesWithIsNamed) {
+  if (!std::filesystem::exists(kCanonStack / "shutter.txt")) GTEST_SKIP() << "no " << kCanonStack;
+  const auto out = fresh_dir("calibrate_sweep_wrong_time");
+  std::ifstream original(kCanonStack / "shutter.txt");
+  std::ofstream doctored(out / "shutter.txt");
+  std::string line;
+  int replaced = 0;
+  while (std::getline(original, line)) {
+    if (line.rfind("img05", 0) == 0) {
+      line = "img05.jpg: 2";
+      ++replaced;
+    }
+    doctored << line << "\n";
+  }
+  doctored.close();
+  ASSERT_EQ(replaced, 1);
+  const CommandResult r = run_command(nirslam("calibrate-sweep '" + kCanonStack.string() + "' --times '" +
+                                              (out / "shutter.txt").string() + "' --green --max-valid 245 --out '" +
+                                              out.string() + "'"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::size_t warning = r.output.find("warning: the brightness of ");
+  ASSERT_NE(warning, std::string::npos) << r.output;
+  const std::size_t named = warning + std::string("warning: the brightness of ").size();
+  const std::string images = r.output.substr(named, r.output.find(" disagrees", named) - named);
+  EXPECT_EQ(images.rfind("img05.jpg (0.", 0), 0u) << images;
+  EXPECT_EQ(images.find(", "), std::string::npos) << "img05 alone: " << images;
+  std::ifstream in(out / "sweep_calibration.json");
+  const nlohmann::json summary = nlohmann::json::parse(in);
+  const double factor = summary.at("images")[4].at("brightness_exposure_factor").get<double>();
+  EXPECT_GT(factor, 0.4);
+  EXPECT_LT(factor, 0.7);
+  EXPECT_NE(summary.at("reported_exposure_check").get<std::string>().find("image 4 ("), std::string::npos);
+  std::printf("img05 given 2 s for its 1 s: brightness %.3fx\n", factor);
 }
 
 TEST(CalibrateSweepCommand, BlackImagesFailWithReasonAndMissingTimeNamesFile) {

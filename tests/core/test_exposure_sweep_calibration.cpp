@@ -144,6 +144,54 @@ struct CanonStack {
   std::vector<cv::Mat> green;
 };
 
+// README Next 5 of session 45: a camera whose reported exposure is not the frame's own. Each
+// image's brightness is checked against its given exposure; with the true times every image
+// agrees, and a camera that reports its previous frame's exposure (a setting read back late)
+// is caught: the sweep's first image is the odd one out against the five after it, which agree
+// among themselves.
+TEST(ExposureSweep, ImagesWhoseBrightnessDisagreesWithTheirReportedExposureAreNamed) {
+  const ResponseModel truth = ResponseModel::from_preset(ResponsePreset::Gamma);
+  const auto images = render_sweep(truth, kExposures, 0.7, 5);
+  const ExposureSweepResult right = calibrate_exposure_sweep(images, kExposures);
+  ASSERT_TRUE(right.ok) << right.reason;
+  EXPECT_TRUE(right.reported_exposure_check.empty()) << right.reported_exposure_check;
+  double worst = 0.0;
+  for (const ExposureSweepImage& info : right.images) worst = std::max(worst, std::abs(std::log(info.brightness_exposure_factor)));
+  EXPECT_LT(worst, std::log(1.02)) << "true exposures: every image within 2 %";
+
+  // Reported one frame late: 1, 1, 0.5, 0.25, ... for the true 1, 0.5, 0.25, 0.125, ...
+  std::vector<double> late = kExposures;
+  for (std::size_t j = late.size() - 1; j > 0; --j) late[j] = late[j - 1];
+  const ExposureSweepResult lagging = calibrate_exposure_sweep(images, late);
+  ASSERT_TRUE(lagging.ok) << lagging.reason;
+  // Only the odd image is named, in front of the explanation: "image 0 (1.80x): ...".
+  const auto named_alone = [](const std::string& check, const std::string& image) {
+    const std::string named = check.substr(0, check.find(':'));
+    return named.rfind(image + " (", 0) == 0 && named.find(',') == std::string::npos;
+  };
+  EXPECT_TRUE(named_alone(lagging.reported_exposure_check, "image 0")) << lagging.reported_exposure_check;
+  // Against the five that agree (each reported 2x its truth, so the radiances come out halved), the
+  // first is about twice as bright as its given exposure predicts: measured 1.80, the joint fit's
+  // response absorbing part of it, and the five within 6 % of 1 (0.944-1.041).
+  EXPECT_GT(lagging.images[0].brightness_exposure_factor, 1.5);
+  EXPECT_LT(lagging.images[0].brightness_exposure_factor, 2.2);
+  for (std::size_t j = 1; j < late.size(); ++j)
+    EXPECT_NEAR(lagging.images[j].brightness_exposure_factor, 1.0, 0.08) << "image " << j;
+
+  // One image's exposure wrong alone (the fourth, given as twice its own).
+  std::vector<double> one_wrong = kExposures;
+  one_wrong[3] *= 2.0;
+  const ExposureSweepResult single = calibrate_exposure_sweep(images, one_wrong);
+  ASSERT_TRUE(single.ok) << single.reason;
+  EXPECT_TRUE(named_alone(single.reported_exposure_check, "image 3")) << single.reported_exposure_check;
+  EXPECT_NEAR(single.images[3].brightness_exposure_factor, 0.5, 0.1);  // measured 0.518, the others 1.003-1.050
+  std::printf("brightness factors, true / late / one wrong:");
+  for (std::size_t j = 0; j < late.size(); ++j)
+    std::printf(" %.3f/%.3f/%.3f", right.images[j].brightness_exposure_factor, lagging.images[j].brightness_exposure_factor,
+                single.images[j].brightness_exposure_factor);
+  std::printf("\n");
+}
+
 CanonStack load_canon_stack() {
   CanonStack stack;
   const fs::path dir = fs::path(NIRSLAM_SHARED_DATA_DIR) / "exposure_stack_canon_s45";
@@ -187,8 +235,12 @@ TEST(ExposureSweep, RealCanonStackKnownTimesGiveMonotonicResponse) {
               stack.times[static_cast<std::size_t>(result.reference_image)].name.c_str(), result.point_count,
               result.observation_count, result.residual_rms_grey, result.iterations, c[0], c[1], c[2], c[3]);
   for (std::size_t j = 0; j < stack.green.size(); ++j)
-    std::printf("  %s: used %d, unclipped %d, rms %.2f %s\n", stack.times[j].name.c_str(), result.images[j].used ? 1 : 0,
-                result.images[j].unclipped_samples, result.images[j].residual_rms_grey, result.images[j].note.c_str());
+    std::printf("  %s: used %d, unclipped %d, rms %.2f, brightness %.3fx %s\n", stack.times[j].name.c_str(),
+                result.images[j].used ? 1 : 0, result.images[j].unclipped_samples, result.images[j].residual_rms_grey,
+                result.images[j].brightness_exposure_factor, result.images[j].note.c_str());
+  // The recorded shutter times are the camera's own: no image is named as disagreeing with its
+  // brightness beyond the stack's scatter.
+  EXPECT_TRUE(result.reported_exposure_check.empty()) << result.reported_exposure_check;
   // The darkest frame (1/1000 s) is nearly black at this scale: excluded, and said so.
   EXPECT_FALSE(result.images[12].used);
   EXPECT_NE(result.images[12].note.find("mostly black"), std::string::npos);

@@ -80,8 +80,22 @@ struct ExposureSweepImage {
   bool used = false;           // took part in the fit
   int unclipped_samples = 0;   // of the sampled positions
   double residual_rms_grey = 0.0;  // of this image's observations in the fit
+  // With given exposures: the factor on the image's given exposure (x power for a power sweep)
+  // that its own grey values fit best, the fitted response and the points' radiances held (1 when
+  // they agree; see reported_exposure_check).
+  double brightness_exposure_factor = 1.0;
+  bool brightness_disagrees = false;  // named in reported_exposure_check
   std::string note;            // why an image was not used
 };
+
+// An image whose brightness disagrees with its given exposure by more than this factor (either
+// way), and by more than this many robust standard deviations of the used images' log factors
+// about their median, is named in ExposureSweepResult::reported_exposure_check. A late report
+// in a sweep of whole stops is off by 2x; the real Canon stack's darkest images, their times
+// right, wander by up to 1.18x at half size (where the response basis fits its toe least), so
+// steps finer than about a third of a stop go unchecked.
+constexpr double kReportedExposureTolerance = 1.25;
+constexpr double kReportedExposureOutlierSigmas = 3.0;
 
 struct ExposureSweepResult {
   bool ok = false;
@@ -106,6 +120,11 @@ struct ExposureSweepResult {
   bool ambient_modelled = false;
   double ambient_share_at_weakest = 0.0;
   int weakest_image = -1;
+  // With given exposures: the images whose brightness_exposure_factor is beyond
+  // kReportedExposureTolerance and the sweep's own scatter, and what that means (empty when every used image agrees). A camera
+  // that reports its exposure control's value rather than the frame's own exposure (UVC auto
+  // exposure read back late, a setting that takes effect frames later) bends the fit this way.
+  std::string reported_exposure_check;
 };
 
 // The exposure x gain factor that would take highest_grey to kSweepTargetHighestGrey (1 when the sweep

@@ -564,10 +564,10 @@ ExposureSweepResult fit_sweep(const std::vector<cv::Mat>& images, const SweepExp
     }
     if (!disagreeing.empty())
       result.reported_exposure_check = fmt::format(
-          "{}: the brightness says this factor times the given exposure{}; a camera that reports its exposure "
-          "control's value rather than the frame's own (read back late, or applied frames later) does this, and "
-          "it bends the response: leave such images out, or give their true exposures",
-          disagreeing, ambient ? " x power" : "");
+          "{}: the brightness says this factor times the given exposure (x power for a power sweep); a camera "
+          "that reports its exposure control's value rather than the frame's own (read back late, or applied "
+          "frames later) does this, and it bends the response: leave such images out, or give their true exposures",
+          disagreeing);
   }
   const double rms = 255.0 * std::sqrt(squared / nobs);
   bool finite = std::isfinite(rms) && c.allFinite();

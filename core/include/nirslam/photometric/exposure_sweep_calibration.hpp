@@ -121,9 +121,11 @@ struct ExposureSweepResult {
   double ambient_share_at_weakest = 0.0;
   int weakest_image = -1;
   // With given exposures: the images whose brightness_exposure_factor is beyond
-  // kReportedExposureTolerance and the sweep's own scatter, and what that means (empty when every used image agrees). A camera
-  // that reports its exposure control's value rather than the frame's own exposure (UVC auto
-  // exposure read back late, a setting that takes effect frames later) bends the fit this way.
+  // kReportedExposureTolerance and the sweep's own scatter, and what that means (empty when every
+  // used image agrees). A camera that reports its exposure control's value rather than the
+  // frame's own exposure (UVC auto exposure read back late, a setting that takes effect frames
+  // later) bends the fit this way. Measured against the consensus of the sweep's images: it names
+  // the images that disagree, not which side is wrong.
   std::string reported_exposure_check;
 };
 

@@ -116,7 +116,8 @@ ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 section "ThreadSanitizer: build"
 # Clang rather than GCC for this stage: GCC took twice as long to compile the core under
 # ThreadSanitizer (photometric_backend.cpp 44 s at -O2, 41 s at -O1, against 18 s with clang 14
-# at -O1; the stage's build 267 -> 136 s of wall, its tests 25 -> 19 s, 2026-12-07), and a second
+# at -O1; the worker tests' build alone 267 -> 136 s of wall, in clean CI runs this stage's build
+# 267 -> 148-174 s and its tests 25 -> 16-19 s, 2026-12-07), and a second
 # compiler's warnings (-Werror here too) see what GCC's do not. The GCC-only heap parameters stay
 # out of this configure; a tree configured with another compiler is configured afresh.
 gcc_heap=()

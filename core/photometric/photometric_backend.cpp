@@ -112,6 +112,15 @@ GreyPrediction predict_grey(const Eigen::Vector4d& c, double irradiance_grey, do
   p.slope = 1.0 + c.dot(dh);
   const double mu = 255.0 * (p.u + c.dot(p.h));
   p.s = grey - mu;
+  // At or above full scale the prediction stops at X = 1 (predicted_sqrt_irradiance): it no longer
+  // moves with the irradiance (and h(1) = 0, so not with c either). The basis's slope there would
+  // tell the step that lowering the radiance lowers the prediction, and a bright point's samples
+  // that read a little under 255 pulled its radiance down by their noise alone (README
+  // "Photometric calibration accuracy", session 47).
+  if (irradiance_grey >= 255.0) {
+    p.slope = 0.0;
+    p.h.setZero();
+  }
   if (clip_noise_grey > 0.0) {
     // A normal sample is one that did not clip: near full scale its expected value is that of a
     // normal truncated at 255, mu - sigma lambda(z), z = (255 - mu) / sigma, lambda = phi / Phi (the
@@ -1199,6 +1208,12 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           // Linearised at the observed irradiance G(I) or, in the predicted form, at e V a L; the
           // residual r in radiance units either way (s = r e V k), so that dr/dL = -1 and the
           // derivatives in v and e below hold for both (PhotometricResidualForm).
+          // Predicted at full scale or above: nothing moves the prediction there (predict_grey), so
+          // the sample's cost is the same for every step that keeps it there.
+          if (predicted && eV * L >= 255.0) {
+            h_pe[static_cast<std::size_t>(i)] = 0.0;
+            continue;
+          }
           GreyPrediction at;
           if (predicted) {
             at = predict_grey(st.c, eV * L, o.grey, clip_noise(o));

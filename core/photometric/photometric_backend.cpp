@@ -91,6 +91,8 @@ bool monotonic_on_grid(const Eigen::Vector4d& c) {
 double predicted_sqrt_irradiance(double irradiance_grey) {
   return std::sqrt(std::clamp(irradiance_grey / 255.0, 1e-6, 1.0));
 }
+// Where predicted_sqrt_irradiance stops at X = 1: nothing moves the prediction there.
+bool predicted_above_full_scale(double irradiance_grey) { return irradiance_grey >= 255.0; }
 
 // The predicted grey value at irradiance e V a L (grey-level units), against the observed one:
 // u = sqrt(X) where it is linearised, the basis h(u), f'(u) and s = grey - 255 f(u). One formula
@@ -117,7 +119,7 @@ GreyPrediction predict_grey(const Eigen::Vector4d& c, double irradiance_grey, do
   // tell the step that lowering the radiance lowers the prediction, and a bright point's samples
   // that read a little under 255 pulled its radiance down by their noise alone (README
   // "Photometric calibration accuracy", session 47).
-  if (irradiance_grey >= 255.0) {
+  if (predicted_above_full_scale(irradiance_grey)) {
     p.slope = 0.0;
     p.h.setZero();
   }
@@ -1205,15 +1207,15 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
           const double V = halo_at(st, o);
           // The light's factor a rides with e V; with ambient light e (V a + kappa w) multiplies L.
           const double eV = ambient_ ? e * (V * o.illumination + st.ambient * o.ambient_weight) : e * V * o.illumination;
-          // Linearised at the observed irradiance G(I) or, in the predicted form, at e V a L; the
-          // residual r in radiance units either way (s = r e V k), so that dr/dL = -1 and the
-          // derivatives in v and e below hold for both (PhotometricResidualForm).
           // Predicted at full scale or above: nothing moves the prediction there (predict_grey), so
           // the sample's cost is the same for every step that keeps it there.
-          if (predicted && eV * L >= 255.0) {
+          if (predicted && predicted_above_full_scale(eV * L)) {
             h_pe[static_cast<std::size_t>(i)] = 0.0;
             continue;
           }
+          // Linearised at the observed irradiance G(I) or, in the predicted form, at e V a L; the
+          // residual r in radiance units either way (s = r e V k), so that dr/dL = -1 and the
+          // derivatives in v and e below hold for both (PhotometricResidualForm).
           GreyPrediction at;
           if (predicted) {
             at = predict_grey(st.c, eV * L, o.grey, clip_noise(o));

@@ -65,6 +65,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   stages.read<double>("lamp_track_min_parallax_deg", pipeline.track_light_distances.min_parallax_deg, 0.1, 45.0);
   stages.read<double>("lamp_track_max_ray_error_px", pipeline.track_light_distances.max_ray_error_px, 0.05, 100.0);
   stages.read<int>("hold_correction_frames", pipeline.hold_correction_frames, -1, 100000);
+  stages.read<int>("odometry_waits_for_model_frames", pipeline.odometry_waits_for_model_frames, 0, 100000);
   stages.reject_unknown_keys();
 
   YamlMapReader odometry(root["odometry"], file, "odometry");
@@ -106,6 +107,15 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   calibration.read_flag("background_thread", pipeline.calibration.background_thread);
   calibration.read_flag("use_reported_exposures", pipeline.calibration.use_reported_exposures);
   calibration.read_flag("estimate_model", pipeline.calibration.run_backend);
+  // The response the back end starts from (and holds while it cannot estimate one): a preset's
+  // name. The simulator's cameras default to the gamma preset too, so a benchmark that should not
+  // start at the truth sets another one.
+  if (const auto name = calibration.read_text("initial_response")) {
+    if (const auto preset = parse_response_preset(*name))
+      pipeline.calibration.backend.initial_response = ResponseModel::from_preset(*preset);
+    else
+      calibration.fail_at("initial_response", "expected linear, gamma, log or filmic, got '" + *name + "'");
+  }
   calibration.read<int>("iterations_per_keyframe", pipeline.calibration.iterations_per_keyframe, 1, 100);
   calibration.read<int>("queue_capacity", pipeline.calibration.queue_capacity, 1, 1000);
   calibration.read<double>("min_exposure_varying_fraction", pipeline.calibration.backend.min_exposure_varying_fraction, 0.0, 1.0);
@@ -120,6 +130,9 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   // The straightness prior on log G above the observed grey range, without and with the lamp's
   // factor (photometric_backend.hpp, log_curvature_weight and lit_log_curvature_weight).
   calibration.read<double>("response_curvature_weight", pipeline.calibration.backend.log_curvature_weight, 0.0, 1e6);
+  // Under the lamp's factor the response held as fitted without it (photometric_backend.hpp,
+  // lit_holds_unlit_response).
+  calibration.read_flag("lamp_mode_holds_response", pipeline.calibration.backend.lit_holds_unlit_response);
   calibration.read<double>("lamp_mode_response_curvature_weight", pipeline.calibration.backend.lit_log_curvature_weight, 0.0, 1e6);
   // The back end's residual form, without and with the lamp's factor (photometric_backend.hpp).
   for (const auto& [key, form] : {std::pair{"residual", &pipeline.calibration.backend.residual_form},

@@ -197,10 +197,12 @@ void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& mo
   const VignetteModel& vignette = options_.correction_vignette ? *options_.correction_vignette : model.vignette;
   const bool first = correction_version_ < 0;
   if (!first && correction_response_.coefficients() == model.response.coefficients() &&
-      correction_vignette_.v == vignette.v)
+      correction_vignette_.v == vignette.v) {
+    correction_model_version_ = model.model_version;
     return;  // caught up: nothing to measure
+  }
   double largest = 0.0;
-  if (!first && options_.max_correction_step_log > 0.0) {
+  if (!first && !correction_at_once_ && options_.max_correction_step_log > 0.0) {
     // How far the estimate is from the correction model, in log G over the grey range the fit
     // saw (outside it G is extrapolated and not what the frames mostly show) and in log V.
     const double low = model.grey_high > model.grey_low ? std::max(model.grey_low, 2.0) : 8.0;
@@ -216,9 +218,11 @@ void OnlinePhotometricCalibration::follow_estimate(const PhotometricEstimate& mo
   }
   // Both models are linear in their coefficients, so a step along the coefficients is a blend of
   // two monotonic curves (itself monotonic) and of two vignettes.
-  const double t = first || largest <= options_.max_correction_step_log || options_.max_correction_step_log <= 0.0
-                       ? 1.0
-                       : options_.max_correction_step_log / largest;
+  const double t =
+      first || correction_at_once_ || largest <= options_.max_correction_step_log || options_.max_correction_step_log <= 0.0
+          ? 1.0
+          : options_.max_correction_step_log / largest;
+  correction_model_version_ = t == 1.0 ? model.model_version : -1;
   if (t == 1.0) {
     correction_response_ = model.response;
     correction_vignette_ = vignette;

@@ -354,6 +354,7 @@ void PhotometricBackend::reset() {
   added_ = 0;
   updates_since_multi_start_ = 0;
   response_fitted_ = false;
+  response_fitted_unlit_ = false;
   ambient_ratio_ = 0.0;
   if (options_.beam_halo) {
     beam_exponent_ = options_.beam_halo->initial_exponent();
@@ -966,6 +967,8 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   const double varying_fraction = static_cast<double>(exposure_varying) / K;
   step.response_estimated = options_.estimate_response && e_max / e_min >= options_.min_exposure_ratio &&
                             varying_fraction >= options_.min_exposure_varying_fraction;
+  const bool held_from_unlit = lit_problem_ && options_.lit_holds_unlit_response && response_fitted_unlit_;
+  if (held_from_unlit) step.response_estimated = false;
   {
     int moving = 0;
     for (const Point& p : points_) {
@@ -982,6 +985,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
   std::string held;
   if (!step.response_estimated)
     held += !options_.estimate_response ? "response held (fixed)"
+            : held_from_unlit ? "response held (as fitted before the lamp's factor)"
             : e_max / e_min < options_.min_exposure_ratio
                 ? "response held (exposure varies too little: " + std::to_string(e_max / e_min).substr(0, 4) + "x)"
                 : "response held (exposure varies on " + std::to_string(exposure_varying) + " of " +
@@ -1519,7 +1523,10 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     state.cost = total_cost(state);
   }
   step.updated = total_iterations > 0;
-  if (step.updated && step.response_estimated) response_fitted_ = true;
+  if (step.updated && step.response_estimated) {
+    response_fitted_ = true;
+    response_fitted_unlit_ |= !lit_problem_;
+  }
   response_ = ResponseModel(state.c);
   vignette_.v = state.v;
   if (beam_steps) beam_exponent_ = state.q[0];

@@ -318,7 +318,9 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     // The correction holds its model until the odometry has tracked for a while (see
     // PipelineOptions::hold_correction_frames).
     if (odometry_ && options_.hold_correction_frames >= 0)
-      calibration_->hold_correction(frames_tracking_ <= options_.hold_correction_frames);
+      calibration_->hold_correction((odometry_started_ || !odometry_waits_for_model()) &&
+                                    frames_tracking_ <= options_.hold_correction_frames);
+    calibration_->follow_at_once(odometry_ && !odometry_started_ && odometry_waits_for_model());
     CorrectedFrame corrected;
     if (predict_light_distances()) {
       FrameIllumination illumination;
@@ -388,7 +390,21 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     result.photometric = std::move(corrected);
   }
 
-  if (odometry_) {
+  if (odometry_ && !odometry_started_) {
+    // odometry_waits_for_model_frames: the odometry's first frame is one corrected with a fitted model.
+    const int version = calibration_ ? calibration_->correction_model_version() : 0;
+    if (!odometry_waits_for_model() || version > 0) {
+      odometry_started_ = true;
+      if (version > 0)
+        spdlog::info("odometry: starts at frame {}, the first corrected with a fitted photometric model (v{})", frame.index, version);
+    } else if (++frames_waiting_for_model_ > options_.odometry_waits_for_model_frames) {
+      odometry_started_ = true;
+      spdlog::warn("odometry: starts at frame {} on the initial photometric model: no fitted model after {} frames "
+                   "(the back end says: {})",
+                   frame.index, options_.odometry_waits_for_model_frames, calibration_->estimate()->status);
+    }
+  }
+  if (odometry_ && odometry_started_) {
     const auto start = Clock::now();
     OdometryFrame input;
     input.frame_index = frame.index;
@@ -420,6 +436,11 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     result.odometry = std::move(odometry);
   }
   return result;
+}
+
+bool SlamPipeline::odometry_waits_for_model() const {
+  return calibration_ && options_.odometry_waits_for_model_frames > 0 && options_.calibration.run_backend &&
+         options_.calibration.given_model.empty();
 }
 
 bool SlamPipeline::predict_light_distances() {

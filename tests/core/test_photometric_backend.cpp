@@ -5,8 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <optional>
 #include <random>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -758,6 +762,87 @@ TEST(PhotometricBackend, CoLitKeyframesNeedTheDistanceFactor) {
   std::printf("worst exposure error: with the factor %.5f, without %.3f\n", with, without);
   EXPECT_LT(with, 2e-3);
   EXPECT_GT(without, 0.1);
+}
+
+// lit_holds_unlit_response: keyframes from before the caller had distances (the rig hardly moves,
+// constant radiance, the exposure swinging) fit the response; once the window carries the lamp's
+// factor the response stays as they fitted it, where without the option the lit updates move it.
+// With no such fit (lit keyframes from the start) the lit updates estimate it all the same.
+TEST(PhotometricBackend, LampModeHoldsTheResponseFittedWithoutTheFactor) {
+  const CoLitKeyframes lit = co_lit_keyframes();
+  std::vector<PhotometricKeyframe> unlit;
+  for (int k = 0; k < 6; ++k) {
+    PhotometricKeyframe kf = lit.keyframes[static_cast<std::size_t>(k)];
+    kf.frame_index = k - 6;
+    kf.exposure = lit.exposures[static_cast<std::size_t>(k)];
+    kf.illumination_modelled = false;
+    for (KeyframeObservation& o : kf.observations) {
+      o.log_illumination = 0.0f;
+      // The first keyframe's brightness at this keyframe's exposure: the distance of keyframe 0.
+      const KeyframeObservation& first = lit.keyframes[0].observations[static_cast<std::size_t>(o.track_id)];
+      for (int p = 0; p < kBackendPixels; ++p) {
+        const float g0 = first.grey[static_cast<std::size_t>(p)];
+        if (g0 < 0.0f) {
+          o.grey[static_cast<std::size_t>(p)] = -1.0f;
+          continue;
+        }
+        const double irradiance = lit.truth.inverse(g0 / 255.0) * kf.exposure / lit.exposures[0];
+        const double grey = 255.0 * lit.truth(irradiance);
+        o.grey[static_cast<std::size_t>(p)] = grey > 3.0 && grey < 250.0 ? static_cast<float>(grey) : -1.0f;
+      }
+    }
+    unlit.push_back(std::move(kf));
+  }
+  std::vector<PhotometricKeyframe> lit_known = lit.keyframes;
+  for (std::size_t k = 0; k < lit_known.size(); ++k) {
+    lit_known[k].exposure = lit.exposures[k];
+    lit_known[k].exposure_known = true;
+  }
+  for (PhotometricKeyframe& kf : unlit) kf.exposure_known = true;
+
+  const auto run = [&](bool hold, bool with_unlit, std::vector<std::string>* statuses) {
+    PhotometricBackendOptions options;
+    options.initial_response = ResponseModel::from_preset(ResponsePreset::Linear);
+    options.estimate_vignette = false;
+    options.lit_holds_unlit_response = hold;
+    PhotometricBackend backend(options);
+    std::optional<ResponseModel> before_lit;
+    if (with_unlit) {
+      for (const PhotometricKeyframe& kf : unlit) {
+        backend.add_keyframe(kf);
+        if (backend.stored_keyframes() >= 4) {
+          EXPECT_TRUE(backend.optimise(10).ok);
+        }
+      }
+      before_lit = backend.response();
+    }
+    for (const PhotometricKeyframe& kf : lit_known) {
+      backend.add_keyframe(kf);
+      if (backend.stored_keyframes() < 4) continue;
+      const BackendStep step = backend.optimise(10);
+      EXPECT_TRUE(step.ok) << step.status;
+      if (statuses != nullptr) statuses->push_back(step.status);
+    }
+    return std::pair{before_lit, backend.response()};
+  };
+  std::vector<std::string> statuses;
+  const auto [fitted_unlit, held] = run(true, true, &statuses);
+  ASSERT_TRUE(fitted_unlit.has_value());
+  const Eigen::Vector4d linear = ResponseModel::from_preset(ResponsePreset::Linear).coefficients();
+  ASSERT_NE(fitted_unlit->coefficients(), linear) << "the constant-radiance keyframes must fit a response";
+  EXPECT_EQ(held.coefficients(), fitted_unlit->coefficients());
+  ASSERT_FALSE(statuses.empty());
+  EXPECT_NE(statuses.back().find("response held (as fitted before the lamp's factor)"), std::string::npos)
+      << statuses.back();
+  // The unlit fit is close to the truth (constant radiance, known exposures, no noise).
+  EXPECT_NEAR(255.0 * fitted_unlit->inverse(0.5) / fitted_unlit->inverse(1.0),
+              255.0 * lit.truth.inverse(0.5) / lit.truth.inverse(1.0), 3.0);
+
+  const auto [unused, estimated] = run(false, true, nullptr);
+  EXPECT_NE(estimated.coefficients(), fitted_unlit->coefficients()) << "without the option the lit updates fit it";
+  const auto [none, lit_only] = run(true, false, nullptr);
+  EXPECT_FALSE(none.has_value());
+  EXPECT_NE(lit_only.coefficients(), linear) << "no fit without the factor: the lit updates estimate it";
 }
 
 // The grey-domain residual with ambient light, s = I - 255 f(sqrt(e L (V a + kappa w) / 255)): its

@@ -11,6 +11,8 @@
 #include <gtest/gtest.h>
 
 #include "nirslam/pipeline/slam_pipeline.hpp"
+#include "nirslam/sim/simulator.hpp"
+#include "simulator_fixtures.hpp"
 
 namespace nirslam {
 namespace {
@@ -119,6 +121,42 @@ TEST(SlamPipeline, TheLampModeTakesItsOwnCalibrationSettings) {
   EXPECT_TRUE(constant_radiance.options().calibration.keyframes_follow_deformation);
   EXPECT_DOUBLE_EQ(constant_radiance.options().calibration.backend.vignette_rim_curvature_weight, 1.0);
   EXPECT_FALSE(constant_radiance.options().calibration.tracker.skip_coarse_levels_at_border);
+}
+
+// odometry_waits_for_model_frames: with the calibration estimating online from a linear initial
+// response, the odometry's first frame is the first corrected with a model the back end fitted
+// (the frames before have no odometry result), not a frame corrected with the initial guess; at 0
+// it starts at once; with every estimate refused (a gate no fit passes) it starts after the wait.
+TEST(SlamPipeline, TheOdometryStartsOnTheFirstFittedModel) {
+  const SimulatorOptions simulated = test_sequences::small_ambient_room(24);
+  std::vector<Frame> frames;
+  Simulator simulator(simulated);
+  while (auto f = simulator.next()) frames.push_back(f->frame);
+  const auto first_odometry_frame = [&](int wait, bool refuse_all, int* model_version) {
+    PipelineOptions options;
+    options.mode = PipelineMode::Calibrated;
+    options.calibration.background_thread = false;
+    options.calibration.backend.initial_response = ResponseModel::from_preset(ResponsePreset::Linear);
+    if (refuse_all) options.calibration.gate.max_residual_rms = 1e-3;
+    options.odometry_waits_for_model_frames = wait;
+    SlamPipeline pipeline(options, simulator.camera());
+    for (const Frame& frame : frames) {
+      const PipelineFrameResult result = pipeline.process(frame);
+      if (result.odometry) {
+        *model_version = pipeline.calibration()->correction_model_version();
+        return frame.index;
+      }
+    }
+    return std::int64_t{-1};
+  };
+  int version = -1;
+  const std::int64_t fitted = first_odometry_frame(30, false, &version);
+  EXPECT_GT(fitted, 0);
+  EXPECT_GT(version, 0) << "the first odometry frame is corrected with a fitted model";
+  EXPECT_EQ(first_odometry_frame(0, false, &version), 0);
+  EXPECT_EQ(version, 0) << "at once: the initial model";
+  EXPECT_EQ(first_odometry_frame(5, true, &version), 5) << "no fitted model: after the wait";
+  EXPECT_EQ(version, 0);
 }
 
 TEST(SlamPipeline, QualityModeRunsNoStage) {

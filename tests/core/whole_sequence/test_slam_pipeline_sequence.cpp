@@ -10,6 +10,7 @@
 #include <functional>
 #include <memory>
 #include <numbers>
+#include <cstdint>
 #include <optional>
 #include <span>
 #include <string>
@@ -56,17 +57,25 @@ TEST(SlamPipelineSequence, CalibratedModeRunsEveryStageAndPublishesViews) {
   ASSERT_NE(pipeline.calibration(), nullptr);
   int frames = 0;
   int with_pose = 0;
+  std::optional<std::int64_t> odometry_start;
   while (auto frame = source.next()) {
     const PipelineFrameResult result = pipeline.process(*frame);
     ASSERT_EQ(result.corrected.type(), CV_32FC1);
     ASSERT_EQ(result.corrected.size(), frame->image.size());
     ASSERT_TRUE(result.photometric.has_value());
-    ASSERT_TRUE(result.odometry.has_value());
-    with_pose += result.odometry->T_world_cam ? 1 : 0;
+    // The odometry starts on the first frame corrected with a fitted model and then has every frame.
+    if (!odometry_start && result.odometry) {
+      odometry_start = frame->index;
+      EXPECT_GT(pipeline.calibration()->correction_model_version(), 0);
+    }
+    ASSERT_EQ(result.odometry.has_value(), odometry_start.has_value()) << "frame " << frame->index;
+    with_pose += result.odometry && result.odometry->T_world_cam ? 1 : 0;
     ++frames;
   }
   pipeline.finish();
   EXPECT_EQ(frames, 45);
+  ASSERT_TRUE(odometry_start.has_value());
+  EXPECT_LT(*odometry_start, 15);
   EXPECT_GT(with_pose, 0) << "the odometry initialised";
 
   const auto photometric = pipeline.photometric_view();
@@ -506,6 +515,10 @@ LampFeedRun run_co_lit(sim::SceneKind scene, bool feed, double ambient_irradianc
     options.calibration.backend.rejection = PhotometricBackendOptions::Rejection::AgainstItsPatch;
   if (std::getenv("NIRSLAM_PIPELINE_REJECT_WHOLE_TRACKS") != nullptr) options.calibration.backend.reject_whole_track = true;
   if (std::getenv("NIRSLAM_PIPELINE_LIT_AMBIENT") != nullptr) options.calibration.backend.lit_ambient = true;
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_WAIT_FOR_MODEL")) options.odometry_waits_for_model_frames = std::atoi(v);
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_INITIAL_RESPONSE"))
+    options.calibration.backend.initial_response = ResponseModel::from_preset(parse_response_preset(v).value());
+  if (const char* v = std::getenv("NIRSLAM_PIPELINE_HOLD_RESPONSE")) options.calibration.backend.lit_holds_unlit_response = std::atoi(v) != 0;
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_DISTANCE_SOURCE"))
     options.lamp_distance_source = lamp_distance_source_from_string(v).value_or(LampDistanceSource::Neighbours);
   if (const char* v = std::getenv("NIRSLAM_PIPELINE_TRACK_PARALLAX")) options.track_light_distances.min_parallax_deg = std::atof(v);
@@ -718,7 +731,12 @@ TEST(SlamPipelineSequence, HeldCosinesFollowTheTunnelWallsAlongTheTracks) {
 // triangulation; with lamp_distance_backfill its keyframes from before take theirs from the same
 // point once it has one. What the back end holds at the end, parking (session 33): without the
 // back-fill 604 of 5114 lit observations carry a distance (ratio along the tracks 0.0077 / 0.024),
-// with it 1417 (811 filled in later; 0.0073 / 0.032).
+// with it 1417 (811 filled in later; 0.0073 / 0.032). Those figures had the odometry initialise on
+// frames corrected with the initial model, the simulator's own response; from a linear one they
+// were 0.137 / 0.168 at the 90th percentile. Session 48 starts the odometry on the first fitted
+// model (odometry_waits_for_model_frames) and holds the response fitted before the lamp's factor:
+// 90 % 0.048 / 0.060, 0.044 / 0.060 and 0.040 / 0.055 from a gamma, linear and log initial
+// response (NIRSLAM_PIPELINE_INITIAL_RESPONSE), whatever the start.
 TEST(SlamPipelineSequence, HeldTracksKeepTheLampDistanceRatioAlongTheTracksAndFillInTheirEarlierKeyframes) {
   const LampFeedRun run = run_co_lit(sim::SceneKind::Parking, true, 0.0, false, LampDistanceSource::HeldTracks, true);
   print("parking fed, held-tracks, back-filled", run);
@@ -726,14 +744,14 @@ TEST(SlamPipelineSequence, HeldTracksKeepTheLampDistanceRatioAlongTheTracksAndFi
               run.held_ratio_error_median, run.held_ratio_error_p90, run.held_observations);
   EXPECT_GT(run.held_observations, 500u);
   EXPECT_LT(run.held_ratio_error_median, 0.012);
-  EXPECT_LT(run.held_ratio_error_p90, 0.04);
+  EXPECT_LT(run.held_ratio_error_p90, 0.06);
   // The back end's keyframes: the filled-in observations more than double those with a distance,
   // and their ratio stays of the track's own point.
   EXPECT_GT(run.keyframe_observations_filled, 500);
   EXPECT_GT(static_cast<double>(run.keyframe_observations_with_distance), 0.22 * static_cast<double>(run.keyframe_observations));
   EXPECT_GT(static_cast<double>(run.keyframe_observations_with_distance), 1.8 * static_cast<double>(run.keyframe_observations_with_distance - static_cast<std::size_t>(run.keyframe_observations_filled)));
   EXPECT_LT(run.keyframe_ratio_error_median, 0.012);
-  EXPECT_LT(run.keyframe_ratio_error_p90, 0.05);
+  EXPECT_LT(run.keyframe_ratio_error_p90, 0.07);
 }
 
 // The lamp mode as config/bench-lamp-sweep-response.yaml runs it: the response held from a sweep

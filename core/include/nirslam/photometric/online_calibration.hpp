@@ -229,6 +229,12 @@ public:
   // change its affine model, held by the known exposures, cannot take up.
   void hold_correction(bool hold) { correction_held_ = hold; }
   bool correction_held() const { return correction_held_; }
+  // While set, the corrected frames adopt every new estimate in full (no max_correction_step_log):
+  // for frames nothing compares yet, as before the odometry starts. The caller's thread.
+  void follow_at_once(bool at_once) { correction_at_once_ = at_once; }
+  // The back end's model version the last corrected frame used in full: 0 for the initial model,
+  // -1 while the correction is on its way between two models (max_correction_step_log).
+  int correction_model_version() const { return correction_model_version_; }
   void reset();
   // Batch mode: waits for the back end to process everything queued, then runs a final full
   // optimisation over every stored keyframe and publishes it.
@@ -267,6 +273,8 @@ private:
   VignetteModel correction_vignette_;
   int correction_version_ = -1;      // increments whenever the correction model moves
   bool correction_held_ = false;     // hold_correction()
+  bool correction_at_once_ = false;  // follow_at_once()
+  int correction_model_version_ = 0;
   void follow_estimate(const PhotometricEstimate& model);
 
   // Back-end thread (or the caller's when background_thread is false).

@@ -103,6 +103,15 @@ struct PipelineOptions {
   // per 20 frames from frame 0 (ATE 3.3 m); held, 0.06 m (README "Illuminator correction").
   // -1: never held.
   int hold_correction_frames = 0;
+  // With the calibration estimating its model online, the odometry starts at the first frame
+  // corrected with a model the back end fitted (the correction follows every estimate at once
+  // until then), or after this many frames without one (a camera whose exposure does not vary
+  // may never give one); 0: at the first frame, on the initial model. The correction is then held
+  // as above, so the initialiser and the first window compare frames corrected with a model fitted
+  // to this camera, not with the initial guess: started on the initial model, the lamp mode of
+  // Table 2 was at 0.0215 m when that guess was the simulator's own curve (gamma) and at 0.52 m
+  // from a linear one (README "Illuminator correction", session 48).
+  int odometry_waits_for_model_frames = 30;
   // Illuminated mode: the calibration gets the lamp's distance to its tracked patches from the
   // odometry's points (light_distance_map.hpp), so its energy carries (d_ref/d)^2 (P/P_ref).
   // Off: the calibration assumes constant radiance, as in Calibrated mode (for comparisons).
@@ -333,6 +342,9 @@ private:
   std::optional<BeamFit> beam_fit_;  // of the halo factor over it
   int beam_fit_version_ = -1;       // the model version it was fitted to
   int frames_tracking_ = 0;         // since the odometry last (re)started tracking (hold_correction_frames)
+  bool odometry_started_ = false;   // it has had a frame (odometry_waits_for_model_frames)
+  int frames_waiting_for_model_ = 0;
+  bool odometry_waits_for_model() const;
   void fit_beam(const PhotometricEstimate& estimate);
   // Reads options_.given_calibration_folder into the calibration's options (the constructor's).
   void hold_given_calibration(double beam_exponent);

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "nirslam/common/huber.hpp"
+#include "nirslam/common/median.hpp"
 
 namespace nirslam {
 
@@ -136,8 +137,7 @@ LightOffsetEstimate LightOffsetEstimator::estimate(const Eigen::Vector3d& start)
   std::vector<double> distances;
   distances.reserve(observations_.size());
   for (const LampObservation& o : observations_) distances.push_back(o.p_cam.norm());
-  std::nth_element(distances.begin(), distances.begin() + static_cast<std::ptrdiff_t>(distances.size() / 2), distances.end());
-  out.median_distance = distances[distances.size() / 2];
+  out.median_distance = median_in_place(distances);
   // In the residuals' units: the data terms are squared log errors of about the sensor's noise.
   const double prior_information = std::pow(options_.min_residual_sigma / (options_.prior_sigma_fraction * out.median_distance), 2);
 

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/common/median.hpp"
 #include "nirslam/photometric/exposure_scale.hpp"
 #include "nirslam/photometric/grey_range_advice.hpp"
 
@@ -117,20 +118,15 @@ PhotometricErrors compare_with_ground_truth(const ResponseModel& response, const
     pairs.emplace_back(*s.estimated, it->second);
   }
   errors.exposure_frames = static_cast<int>(relative.size());
-  const auto median = [](std::vector<double>& values) {
-    const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-    std::nth_element(values.begin(), middle, values.end());
-    return *middle;
-  };
   if (!relative.empty()) {
     errors.exposure_mean_ms /= static_cast<double>(relative.size());
-    errors.exposure_median_relative = median(relative);
+    errors.exposure_median_relative = median_in_place(relative);
     std::vector<double> log_ratio;
     for (const auto& [est, tru] : pairs) log_ratio.push_back(std::log(tru / est));
-    const double aligned_scale = std::exp(median(log_ratio));
+    const double aligned_scale = std::exp(median_in_place(log_ratio));
     relative.clear();
     for (const auto& [est, tru] : pairs) relative.push_back(std::abs(est * aligned_scale / tru - 1.0));
-    errors.exposure_median_relative_aligned = median(relative);
+    errors.exposure_median_relative_aligned = median_in_place(relative);
   }
   return errors;
 }

@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/common/error.hpp"
+#include "nirslam/common/median.hpp"
 #include "nirslam/common/huber.hpp"
 #include "nirslam/common/text_fields.hpp"
 
@@ -541,10 +542,6 @@ ExposureSweepResult fit_sweep(const std::vector<cv::Mat>& images, const SweepExp
     std::vector<double> logs;
     for (int j : used_images)
       if (std::isfinite(log_factor[static_cast<std::size_t>(j)])) logs.push_back(log_factor[static_cast<std::size_t>(j)]);
-    const auto median_of = [](std::vector<double> values) {
-      std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
-      return values[values.size() / 2];
-    };
     double threshold = std::log(kReportedExposureTolerance), centre = 0.0;
     if (!logs.empty()) {
       centre = median_of(logs);
@@ -595,14 +592,10 @@ ExposureSweepResult fit_sweep(const std::vector<cv::Mat>& images, const SweepExp
       spans.push_back(highest - lowest);
       grey_spans.push_back(255.0 * (brightest - darkest));
     }
-    const auto median = [](std::vector<double>& values) {
-      std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
-      return values[values.size() / 2];
-    };
     constexpr double kMinIrradianceRatio = 1.5;
     constexpr double kMinGreySpan = 8.0;
-    const double ratio = std::exp(median(spans));
-    const double grey_span = median(grey_spans);
+    const double ratio = std::exp(median_in_place(spans));
+    const double grey_span = median_in_place(grey_spans);
     if (!(ratio >= kMinIrradianceRatio) || !(grey_span >= kMinGreySpan))
       return degenerate(result, options,
                         fmt::format("the lamp changes the points by a median {:.1f} grey levels, their irradiance by a "
@@ -649,8 +642,7 @@ ExposureSweepResult fit_sweep(const std::vector<cv::Mat>& images, const SweepExp
     std::vector<double> shares;
     shares.reserve(static_cast<std::size_t>(points));
     for (double b : ambient_radiance) shares.push_back(b * ambient_scale[w] / lamp_scale[w]);
-    std::nth_element(shares.begin(), shares.begin() + static_cast<std::ptrdiff_t>(shares.size() / 2), shares.end());
-    result.ambient_share_at_weakest = shares[shares.size() / 2];
+    result.ambient_share_at_weakest = median_in_place(shares);
     result.weakest_image = weakest;
   }
   return result;

@@ -12,6 +12,7 @@
 #include <Eigen/Cholesky>
 
 #include "nirslam/common/huber.hpp"
+#include "nirslam/common/median.hpp"
 
 namespace nirslam {
 
@@ -29,13 +30,6 @@ double f_of_u(const Eigen::Vector4d& c, double u, double* slope) {
 double vignette_at(const Eigen::Vector3d& v, double radius) {
   const double r2 = radius * radius;
   return 1.0 + r2 * (v[0] + r2 * (v[1] + r2 * v[2]));
-}
-
-double median_in_place(std::vector<double>& values) {
-  if (values.empty()) return 0.0;
-  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  return *middle;
 }
 
 // One past the last of the points from `first` on that share its track (a track's pixels are

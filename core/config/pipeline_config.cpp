@@ -97,6 +97,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
                        "expected 'spread' or 'inverse-depth-plane', got '" + *fit + "'");
   }
   odometry.read_flag("lamp_factor_derivatives", pipeline.odometry.lamp_factor_derivatives);
+  odometry.read_flag("lamp_factor_derivatives_in_window", pipeline.odometry.lamp_factor_derivatives_in_window);
   odometry.read_flag("beam_corrected_weights", pipeline.odometry.beam_corrected_weights);
   odometry.read_flag("lamp_in_traces", pipeline.odometry.lamp_in_traces);
   odometry.read<int>("init_geometric_frames", pipeline.odometry.init_geometric_frames, 0, 60);

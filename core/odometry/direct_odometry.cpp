@@ -148,7 +148,7 @@ struct DirectOdometry::Impl {
     wo.huber_threshold = options.huber_threshold;
     wo.gradient_weight_c = options.gradient_weight_c;
     wo.outlier_energy = options.outlier_energy;
-    wo.lamp = lamp();
+    wo.lamp = lamp(true);
     window = std::make_unique<WindowOptimizer>(cameras[0], wo);
     CoarseTrackerOptions to;
     to.huber_threshold = options.huber_threshold;
@@ -168,9 +168,10 @@ struct DirectOdometry::Impl {
     last_b = 0.0;
   }
 
-  odometry::LampGeometry lamp() const {
+  odometry::LampGeometry lamp(bool for_window = false) const {
+    const bool derivatives = options.lamp_factor_derivatives && (!for_window || options.lamp_factor_derivatives_in_window);
     return {options.illuminator_correction, options.light_offset, options.beam_exponent, options.brightness_exponent,
-            options.lamp_factor_derivatives, options.beam_corrected_weights};
+            derivatives, options.beam_corrected_weights};
   }
 
   double a_prior(bool first) const {
@@ -763,7 +764,7 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
       throw std::invalid_argument("OdometryFrame.beam_exponent: must be finite");
     if (*frame.beam_exponent != impl_->options.beam_exponent) {
       impl_->options.beam_exponent = options_.beam_exponent = *frame.beam_exponent;
-      if (impl_->window) impl_->window->set_lamp(impl_->lamp());
+      if (impl_->window) impl_->window->set_lamp(impl_->lamp(true));
       if (impl_->tracker) impl_->tracker->set_lamp(impl_->lamp());
     }
   }

@@ -13,8 +13,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "nirslam/common/error.hpp"
-#include "nirslam/common/median.hpp"
 #include "nirslam/common/huber.hpp"
+#include "nirslam/common/median.hpp"
 #include "nirslam/common/text_fields.hpp"
 
 namespace nirslam {

@@ -395,7 +395,7 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     const int version = calibration_ ? calibration_->correction_model_version() : 0;
     if (!odometry_waits_for_model() || version > 0) {
       odometry_started_ = true;
-      if (version > 0)
+      if (odometry_waits_for_model())
         spdlog::info("odometry: starts at frame {}, the first corrected with a fitted photometric model (v{})", frame.index, version);
     } else if (++frames_waiting_for_model_ > options_.odometry_waits_for_model_frames) {
       odometry_started_ = true;

@@ -253,67 +253,98 @@ TEST(IlluminatorWall, TrackerFindsTheApproachBetterWithTheLampFactor) {
   EXPECT_LT(error_lamp, error_plain);
 }
 
-// The window (host 3.0 m, targets 2.8 and 2.6 m), poses perturbed, affine brightness free:
-// with the lamp's factor (and its 9-parameter host/target mapping of the Hessian) the
+struct WindowRun {
+  double translation_error = 0.0;  // of the two closer views, summed [m]
+  double energy = 0.0;
+};
+
+// The window (host 3.0 m, targets 2.8 and 2.6 m), poses perturbed, affine brightness free.
+WindowRun optimise_wall_window(const LampGeometry& lamp) {
+  const WallSequence& s = wall_sequence();
+  std::vector<WindowPoint> points = host_points(s);
+  estimate_surface_normals(kWallCamera, points);
+  WindowOptions options;
+  options.lamp = lamp;
+  WindowOptimizer window(kWallCamera, options);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  const std::size_t views[] = {0, 1, 2};
+  for (std::size_t v : views) {
+    WindowFrame f;
+    f.id = static_cast<std::int64_t>(v);
+    f.pyramid = s.images[v];
+    Vector6d d = Vector6d::Zero();
+    if (v > 0) {
+      d.head<3>() = Eigen::Vector3d(noise(rng), noise(rng), noise(rng)) * 0.01;
+      d.tail<3>() = Eigen::Vector3d(noise(rng), noise(rng), noise(rng)) * 0.002;
+    } else {
+      f.pose_prior_weight = 1e8;
+      f.pose_prior = s.T_world_cam[v].inverse();
+    }
+    f.state.T_cam_world = SE3::exp(d) * s.T_world_cam[v].inverse();
+    f.affine_a_prior_weight = 1.0;
+    f.affine_b_prior_weight = 1.0;
+    window.add_frame(std::move(f));
+  }
+  const PyramidLevel& host = s.images[0]->level(0);
+  for (std::size_t i = 0; i < points.size(); i += 2) {
+    WindowPoint p = points[i];
+    set_wall_pattern_intensities(host, p);
+    p.inverse_depth_prior_weight = 10.0;  // the scale gauge
+    p.inverse_depth_prior_mean = p.inverse_depth;
+    p.inverse_depth *= 1.0 + 0.05 * noise(rng);
+    window.connect_to_all(p, 0);
+    window.frames()[0].points.push_back(p);
+  }
+  const WindowStatistics stats = window.optimize(20);
+  EXPECT_LT(stats.final_energy, stats.initial_energy);
+  std::printf("  energy %.0f -> %.0f in %d iterations, %d residuals\n", stats.initial_energy, stats.final_energy,
+              stats.iterations, stats.residuals);
+  WindowRun run;
+  run.energy = stats.final_energy;
+  for (std::size_t k = 1; k < 3; ++k)
+    run.translation_error +=
+        (window.frames()[k].state.T_cam_world.inverse().translation() - s.T_world_cam[views[k]].translation()).norm();
+  return run;
+}
+
+// With the lamp's factor (and its 9-parameter host/target mapping of the Hessian) the
 // optimisation fits the views better and recovers the poses more closely (measured: energy
 // 175k vs 269k, translation error 3.2 vs 4.4 cm; the rest is the renderer's texture detail).
 TEST(IlluminatorWall, WindowOptimisationWithTheLampFactor) {
   const WallSequence& s = wall_sequence();
-  std::vector<WindowPoint> points = host_points(s);
-  estimate_surface_normals(kWallCamera, points);
-  auto run = [&](const LampGeometry& lamp, double& energy) {
-    WindowOptions options;
-    options.lamp = lamp;
-    WindowOptimizer window(kWallCamera, options);
-    std::mt19937 rng(5);
-    std::normal_distribution<double> noise(0.0, 1.0);
-    const std::size_t views[] = {0, 1, 2};
-    for (std::size_t v : views) {
-      WindowFrame f;
-      f.id = static_cast<std::int64_t>(v);
-      f.pyramid = s.images[v];
-      Vector6d d = Vector6d::Zero();
-      if (v > 0) {
-        d.head<3>() = Eigen::Vector3d(noise(rng), noise(rng), noise(rng)) * 0.01;
-        d.tail<3>() = Eigen::Vector3d(noise(rng), noise(rng), noise(rng)) * 0.002;
-      } else {
-        f.pose_prior_weight = 1e8;
-        f.pose_prior = s.T_world_cam[v].inverse();
-      }
-      f.state.T_cam_world = SE3::exp(d) * s.T_world_cam[v].inverse();
-      f.affine_a_prior_weight = 1.0;
-      f.affine_b_prior_weight = 1.0;
-      window.add_frame(std::move(f));
-    }
-    const PyramidLevel& host = s.images[0]->level(0);
-    for (std::size_t i = 0; i < points.size(); i += 2) {
-      WindowPoint p = points[i];
-      set_wall_pattern_intensities(host, p);
-      p.inverse_depth_prior_weight = 10.0;  // the scale gauge
-      p.inverse_depth_prior_mean = p.inverse_depth;
-      p.inverse_depth *= 1.0 + 0.05 * noise(rng);
-      window.connect_to_all(p, 0);
-      window.frames()[0].points.push_back(p);
-    }
-    const WindowStatistics stats = window.optimize(20);
-    EXPECT_LT(stats.final_energy, stats.initial_energy);
-    std::printf("  energy %.0f -> %.0f in %d iterations, %d residuals\n", stats.initial_energy, stats.final_energy,
-                stats.iterations, stats.residuals);
-    energy = stats.final_energy;
-    double error = 0.0;
-    for (std::size_t k = 1; k < 3; ++k)
-      error += (window.frames()[k].state.T_cam_world.inverse().translation() -
-                s.T_world_cam[views[k]].translation()).norm();
-    return error;
-  };
-  double energy_plain = 0.0;
-  double energy_lamp = 0.0;
-  const double error_plain = run(LampGeometry{}, energy_plain);
-  const double error_lamp = run(LampGeometry{true, s.lamp.offset_cam, s.lamp.beam_exponent()}, energy_lamp);
-  std::printf("window: translation error %.4f m (energy %.0f) plain, %.4f m (energy %.0f) with the lamp\n", error_plain,
-              energy_plain, error_lamp, energy_lamp);
-  EXPECT_LT(energy_lamp, 0.8 * energy_plain);
-  EXPECT_LT(error_lamp, error_plain);
+  const WindowRun plain = optimise_wall_window(LampGeometry{});
+  const WindowRun lamp = optimise_wall_window(LampGeometry{true, s.lamp.offset_cam, s.lamp.beam_exponent()});
+  std::printf("window: translation error %.4f m (energy %.0f) plain, %.4f m (energy %.0f) with the lamp\n",
+              plain.translation_error, plain.energy, lamp.translation_error, lamp.energy);
+  EXPECT_LT(lamp.energy, 0.8 * plain.energy);
+  EXPECT_LT(lamp.translation_error, plain.translation_error);
+}
+
+// The window under a beam estimated too narrow (m 1.5 too high, as the back end's estimate in a
+// garage with a glossy floor): with g's derivatives the brightness the wrong beam predicts pulls
+// the poses along the approach (measured 23 cm); with g held at each linearisation
+// (OdometryOptions::lamp_factor_derivatives_in_window false, the default) 7.8 cm.
+TEST(IlluminatorWall, WindowHoldingTheLampFactorKeepsTheApproachUnderAWrongBeam) {
+  const WallSequence& s = wall_sequence();
+  LampGeometry with_derivatives{true, s.lamp.offset_cam, s.lamp.beam_exponent() + 1.5};
+  LampGeometry held = with_derivatives;
+  held.derivatives = false;
+  const WindowRun pulled = optimise_wall_window(with_derivatives);
+  const WindowRun kept = optimise_wall_window(held);
+  LampGeometry truth{true, s.lamp.offset_cam, s.lamp.beam_exponent()};
+  const WindowRun truth_with_derivatives = optimise_wall_window(truth);
+  truth.derivatives = false;
+  const WindowRun truth_held = optimise_wall_window(truth);
+  std::printf("window under m + 1.5: translation error %.4f m with g's derivatives, %.4f m g held (true m: %.4f / "
+              "%.4f m)\n",
+              pulled.translation_error, kept.translation_error, truth_with_derivatives.translation_error,
+              truth_held.translation_error);
+  EXPECT_LT(kept.translation_error, 0.5 * pulled.translation_error);
+  // The price: where the beam is right the derivatives place the views best (measured 3.2 cm
+  // against 6.4 cm held). The pipeline's beam is estimated, 0.5-2 off its best value on Table 2's
+  // sequences, and there holding wins (README "Illuminator correction", session 49).
+  EXPECT_LT(truth_with_derivatives.translation_error, truth_held.translation_error);
 }
 
 // With the beam carried by the residual (frames corrected for the lens alone), lamp-lit

@@ -106,8 +106,9 @@ struct OdometryOptions {
   // model. Off, the window holds g at each linearisation's estimates and the frame-to-keyframe
   // tracking keeps them: an error in the estimated beam or response (the garage's glossy floor
   // raises m from 5.7 to 6.9) then no longer pulls the depths against the translation, the scale
-  // drift of the fully online lamp mode (Table 2 from the first frame 0.0237 -> 0.0165 m, from
-  // frames 15 and 30 0.0169 -> 0.015x m; README "Illuminator correction", session 49).
+  // drift of the fully online lamp mode (Table 2 from the first frame 0.0237 -> 0.0165 m; from
+  // frames 15 and 30 0.0169 -> 0.0180 m, one street run; README "Illuminator correction",
+  // session 49). Where the beam is right they help (IlluminatorWall tests).
   bool lamp_factor_derivatives_in_window = false;
   // With a beam: residuals and gradients divided by the target's B(alpha_t)^gamma before
   // weighting, as in frames corrected for the beam (LampGeometry::beam_corrected_weights).

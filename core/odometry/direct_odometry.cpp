@@ -148,7 +148,7 @@ struct DirectOdometry::Impl {
     wo.huber_threshold = options.huber_threshold;
     wo.gradient_weight_c = options.gradient_weight_c;
     wo.outlier_energy = options.outlier_energy;
-    wo.lamp = lamp(true);
+    wo.lamp = window_lamp();
     window = std::make_unique<WindowOptimizer>(cameras[0], wo);
     CoarseTrackerOptions to;
     to.huber_threshold = options.huber_threshold;
@@ -168,10 +168,14 @@ struct DirectOdometry::Impl {
     last_b = 0.0;
   }
 
-  odometry::LampGeometry lamp(bool for_window = false) const {
-    const bool derivatives = options.lamp_factor_derivatives && (!for_window || options.lamp_factor_derivatives_in_window);
+  odometry::LampGeometry lamp() const {
     return {options.illuminator_correction, options.light_offset, options.beam_exponent, options.brightness_exponent,
-            derivatives, options.beam_corrected_weights};
+            options.lamp_factor_derivatives, options.beam_corrected_weights};
+  }
+  odometry::LampGeometry window_lamp() const {
+    odometry::LampGeometry window_geometry = lamp();
+    window_geometry.derivatives = window_geometry.derivatives && options.lamp_factor_derivatives_in_window;
+    return window_geometry;
   }
 
   double a_prior(bool first) const {
@@ -764,7 +768,7 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
       throw std::invalid_argument("OdometryFrame.beam_exponent: must be finite");
     if (*frame.beam_exponent != impl_->options.beam_exponent) {
       impl_->options.beam_exponent = options_.beam_exponent = *frame.beam_exponent;
-      if (impl_->window) impl_->window->set_lamp(impl_->lamp(true));
+      if (impl_->window) impl_->window->set_lamp(impl_->window_lamp());
       if (impl_->tracker) impl_->tracker->set_lamp(impl_->lamp());
     }
   }

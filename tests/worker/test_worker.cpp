@@ -484,6 +484,10 @@ TEST(WorkerOnSimulator, OperatorPowerDrivesTheSimulatedLamp) {
 TEST(WorkerOnSimulator, PipelineViewsTravelInSnapshotsAndTheFinishHandlerSeesTheEnd) {
   WorkerOptions options;
   options.pipeline.mode = PipelineMode::Calibrated;
+  // The odometry waits for the back end's first fitted model, by default up to 30 frames; on a
+  // busy machine the back end's thread may fit none within these 20 (a CI run saw no tracking
+  // at all), so the wait is short enough that the odometry always gets frames.
+  options.pipeline.odometry_waits_for_model_frames = 4;
   Worker worker(options);
   std::atomic<std::size_t> final_poses{0};
   std::atomic<bool> finished_with_calibration{false};

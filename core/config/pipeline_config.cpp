@@ -66,6 +66,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& file) {
   stages.read<double>("lamp_track_max_ray_error_px", pipeline.track_light_distances.max_ray_error_px, 0.05, 100.0);
   stages.read<int>("hold_correction_frames", pipeline.hold_correction_frames, -1, 100000);
   stages.read<int>("odometry_waits_for_model_frames", pipeline.odometry_waits_for_model_frames, 0, 100000);
+  stages.read_flag("lamp_factor_waits_for_response", pipeline.lamp_factor_waits_for_response);
   stages.reject_unknown_keys();
 
   YamlMapReader odometry(root["odometry"], file, "odometry");

@@ -118,6 +118,9 @@ struct DirectOdometry::Impl {
 
   // The frames carry exposures and no lamp the odometry does not model is on: strong affine priors.
   bool exposure_explains_brightness = false;
+  // The lamp's factor in the residuals: options.illuminator_correction while the frames trust it
+  // (OdometryFrame::lamp_factor_trusted).
+  bool lamp_factor_on = options.illuminator_correction;
 
   // The second thread of the epipolar searches.
   HelperThread helper;
@@ -169,7 +172,7 @@ struct DirectOdometry::Impl {
   }
 
   odometry::LampGeometry lamp() const {
-    return {options.illuminator_correction, options.light_offset, options.beam_exponent, options.brightness_exponent,
+    return {lamp_factor_on, options.light_offset, options.beam_exponent, options.brightness_exponent,
             options.lamp_factor_derivatives, options.beam_corrected_weights};
   }
   odometry::LampGeometry window_lamp() const {
@@ -775,6 +778,8 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
   // The brightness factor of the frame: its exposure and, with the lamp's correction, the lamp's
   // power (the only light: irradiance scales with it). A lamp that is off or says nothing
   // counts as 1, so the affine brightness absorbs what changed.
+  // The power stays in the exposure while the lamp's factor is not trusted: the window's frames
+  // keep the exposures they came with, and a ratio across the switch would jump by P.
   double exposure = frame.exposure.value_or(1.0);
   if (options_.illuminator_correction && frame.illuminator_power_w && *frame.illuminator_power_w > 0.0)
     exposure *= *frame.illuminator_power_w;
@@ -785,10 +790,21 @@ OdometryResult DirectOdometry::process(const OdometryFrame& frame) {
   // (README "Illuminator correction"): better on 8 of 12, better than plain odometry on 7
   // instead of 1. With the lamp's factor modelled the strong priors stay (weak ones made the
   // `illuminated` street 1.4-4 times worse).
-  const bool unmodelled_lamp =
-      !options_.illuminator_correction && frame.illuminator_power_w && *frame.illuminator_power_w > 0.0;
-  if (impl_->phase == Impl::Phase::Initialising && impl_->initializer->state() != InitializerState::Tracking)
+  const bool lamp_factor_on = options_.illuminator_correction && frame.lamp_factor_trusted;
+  const bool unmodelled_lamp = !lamp_factor_on && frame.illuminator_power_w && *frame.illuminator_power_w > 0.0;
+  const bool lamp_factor_switched = lamp_factor_on != impl_->lamp_factor_on;
+  if (lamp_factor_switched) {
+    // Frames already in the window keep the priors they came with; the new ones take the new.
+    impl_->lamp_factor_on = lamp_factor_on;
+    if (impl_->window) impl_->window->set_lamp(impl_->window_lamp());
+    if (impl_->tracker) impl_->tracker->set_lamp(impl_->lamp());
+  }
+  if (lamp_factor_switched ||
+      (impl_->phase == Impl::Phase::Initialising && impl_->initializer->state() != InitializerState::Tracking)) {
     impl_->exposure_explains_brightness = frame.exposure.has_value() && !unmodelled_lamp;
+    if (lamp_factor_switched && impl_->tracker)
+      impl_->tracker->set_affine_priors(0.1 * impl_->a_prior(false), 0.1 * impl_->b_prior(false));
+  }
 
   // Checked and its beam exponent taken (as without the hold); replayed later.
   if (impl_->geometric_pending && impl_->phase == Impl::Phase::Initialising) return hold_for_geometric_start(frame);

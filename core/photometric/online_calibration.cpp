@@ -133,6 +133,8 @@ std::shared_ptr<const PhotometricEstimate> OnlinePhotometricCalibration::initial
   auto e = std::make_shared<PhotometricEstimate>();
   e->response = backend_.response();
   e->vignette = backend_.vignette();
+  e->response_determined = !options_.backend.estimate_response || options_.response_from_power_sweep.has_value() ||
+                       !options_.given_model.empty();
   if (options_.backend.beam_halo) {
     e->beam_exponent = backend_.beam_exponent();
     e->beam_lens = options_.backend.beam_halo->lens();
@@ -404,6 +406,7 @@ void OnlinePhotometricCalibration::publish(const BackendStep& step) {
   e->points = step.points;
   e->backend_ms = last_backend_ms_;
   const bool adopted = step.ok && step.updated && rejection.empty();
+  e->response_determined = previous->response_determined || (adopted && step.response_estimated && !step.lit);
   e->grey_low = adopted ? step.grey_low : previous->grey_low;
   e->grey_high = adopted ? step.grey_high : previous->grey_high;
   e->radius_high = adopted ? step.radius_high : previous->radius_high;

@@ -902,6 +902,7 @@ BackendStep PhotometricBackend::optimise(int max_iterations, bool all_stored) {
     return step;
   }
   build_problem(window_);
+  step.lit = lit_problem_;
   step.points = static_cast<int>(points_.size());
   for (const Observation& o : observations_) (o.bound == 0 ? step.observations : step.clip_bounds) += 1;
   if (step.points < options_.min_points) {

@@ -419,6 +419,19 @@ PipelineFrameResult SlamPipeline::process(const Frame& frame) {
     else if (result.photometric)
       input.exposure = result.photometric->exposure;
     input.illuminator_power_w = frame.illuminator_power_w;
+    if (options_.lamp_factor_waits_for_response && calibration_) {
+      const auto estimate = calibration_->estimate();
+      input.lamp_factor_trusted = estimate->response_determined;
+      if (input.lamp_factor_trusted != lamp_factor_trusted_) {
+        lamp_factor_trusted_ = input.lamp_factor_trusted;
+        if (lamp_factor_trusted_)
+          spdlog::info("odometry: the lamp's factor from frame {} on, the response determined (photometric model v{})",
+                       frame.index, estimate->model_version);
+        else
+          spdlog::info("odometry: frame {} without the lamp's factor until the response is fitted from exposure changes",
+                       frame.index);
+      }
+    }
     if (odometry_carries_beam(options_) && calibration_)
       if (const auto estimate = calibration_->estimate(); estimate && estimate->beam_exponent)
         input.beam_exponent = *estimate->beam_exponent;

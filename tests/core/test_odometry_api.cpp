@@ -100,6 +100,25 @@ TEST(OdometryApi, ALampNotModelledLeavesTheAffineBrightnessFree) {
   }
 }
 
+TEST(OdometryApi, AnUntrustedLampFactorCountsAsALampNotModelled) {
+  // The pipeline withholds the factor until the camera response is fitted
+  // (PipelineOptions::lamp_factor_waits_for_response); the frame follows its own flag.
+  OdometryOptions options;
+  options.illuminator_correction = true;
+  DirectOdometry odometry(small_camera(), options);
+  OdometryFrame frame;
+  frame.image = cv::Mat(60, 80, CV_32FC1, cv::Scalar(100));
+  frame.exposure = 10.0;
+  frame.illuminator_power_w = 50.0;
+  for (const bool trusted : {false, true, false, true}) {
+    frame.lamp_factor_trusted = trusted;
+    odometry.process(frame);
+    ++frame.frame_index;
+    EXPECT_EQ(odometry.exposure_explains_brightness(), trusted) << "frame " << frame.frame_index - 1;
+  }
+  EXPECT_TRUE(odometry.options().illuminator_correction) << "the option stays; the frames choose";
+}
+
 TEST(OdometryApi, StatusNames) {
   EXPECT_STREQ(to_string(TrackingStatus::Initialising), "initialising");
   EXPECT_STREQ(to_string(TrackingStatus::Tracking), "tracking");

@@ -742,6 +742,7 @@ double co_lit_worst_exposure_error(const CoLitKeyframes& input, const std::funct
   if (prepare) prepare(backend);
   const BackendStep step = backend.optimise(60, true);
   EXPECT_TRUE(step.ok) << step.status;
+  EXPECT_EQ(step.lit, input.keyframes.front().illumination_modelled) << "the step says whether it carried the factor";
   double worst = 0.0;
   const auto estimated = backend.keyframe_exposures();
   for (std::size_t k = 0; k < estimated.size(); ++k)

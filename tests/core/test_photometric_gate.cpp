@@ -109,5 +109,30 @@ TEST(PhotometricGate, HeldCorrectionKeepsItsModelUntilReleased) {
   EXPECT_GT(cv::norm(held.irradiance, released.irradiance, cv::NORM_INF), 0.1);
 }
 
+// PhotometricEstimate::response_determined, which the lamp mode's odometry waits for
+// (PipelineOptions::lamp_factor_waits_for_response): a given response from the start, a fitted
+// one from the first adopted update that estimated it without the lamp's factor.
+TEST(PhotometricGate, TheResponseIsDeterminedWhenGivenOrOnceFittedFromExposureChanges) {
+  OnlineCalibrationOptions given;
+  given.background_thread = false;
+  given.backend.estimate_response = false;
+  EXPECT_TRUE(OnlinePhotometricCalibration(given).estimate()->response_determined);
+
+  OnlineCalibrationOptions options;
+  options.background_thread = false;
+  OnlinePhotometricCalibration calibration(options);
+  EXPECT_FALSE(calibration.estimate()->response_determined) << "the initial guess";
+  bool determined_before_fitted = false;
+  for (const Frame& frame : small_room_frames(40)) {
+    calibration.process(frame);
+    const auto estimate = calibration.estimate();
+    determined_before_fitted |= estimate->response_determined && estimate->model_version == 0;
+  }
+  const auto estimate = calibration.estimate();
+  ASSERT_GT(estimate->model_version, 0) << estimate->status;
+  EXPECT_FALSE(determined_before_fitted);
+  EXPECT_TRUE(estimate->response_determined) << estimate->status;
+}
+
 }  // namespace
 }  // namespace nirslam

@@ -54,6 +54,7 @@ TEST(PipelineConfig, ShippedDefaultFileLoads) {
   EXPECT_NEAR(config.worker.pipeline.raw_frame_exponent, 1.0 / 2.2, 1e-4);
   EXPECT_TRUE(config.worker.pipeline.odometry.lamp_factor_derivatives);
   EXPECT_FALSE(config.worker.pipeline.odometry.lamp_factor_derivatives_in_window);
+  EXPECT_FALSE(config.worker.pipeline.lamp_factor_waits_for_response);
   EXPECT_TRUE(config.worker.pipeline.odometry.beam_corrected_weights);
   // The file spells the built-in keyframe weights out; they must stay the same numbers.
   EXPECT_NEAR(config.worker.pipeline.odometry.keyframe_translation_flow_weight,
@@ -299,11 +300,13 @@ TEST(PipelineConfig, LampOffsetConfiguredOrEstimated) {
               "  lamp_factor_derivatives_in_window: true\n"
               "  beam_corrected_weights: false\n"
               "  lamp_in_traces: true\n"
-              "calibration:\n  min_exposure_varying_fraction: 0.4\n"));
+              "calibration:\n  min_exposure_varying_fraction: 0.4\n"
+              "pipeline:\n  lamp_factor_waits_for_response: true\n"));
   EXPECT_TRUE(config.worker.pipeline.odometry.lamp_in_traces);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.calibration.backend.min_exposure_varying_fraction, 0.4);
   EXPECT_FALSE(config.worker.pipeline.odometry.lamp_factor_derivatives);
   EXPECT_TRUE(config.worker.pipeline.odometry.lamp_factor_derivatives_in_window);
+  EXPECT_TRUE(config.worker.pipeline.lamp_factor_waits_for_response);
   EXPECT_FALSE(config.worker.pipeline.odometry.beam_corrected_weights);
   EXPECT_TRUE(config.worker.pipeline.light_offset_configured);
   EXPECT_DOUBLE_EQ(config.worker.pipeline.odometry.light_offset.y(), 0.02);

@@ -8,6 +8,9 @@
 #include <functional>
 #include <filesystem>
 #include <iostream>
+#include <limits>
+#include <optional>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
@@ -249,6 +252,64 @@ TEST(OdometrySequence, LossStartsANewSegment) {
   int segment_one = 0;
   for (const auto& p : odometry.trajectory()) segment_one += p.segment == 1 ? 1 : 0;
   EXPECT_GT(segment_one, 30);
+}
+
+// The lamp's factor withheld frame by frame (OdometryFrame::lamp_factor_trusted; the pipeline
+// withholds it until the camera response is fitted): untrusted frames give the poses of an
+// odometry without the correction, and from the frame that trusts it on the factor is in use.
+TEST(OdometrySequence, AnUntrustedLampFactorRunsAsWithoutTheCorrectionUntilTrusted) {
+  SimulatorOptions o;
+  o.scene = sim::SceneKind::Parking;
+  o.powers_w = {50.0};
+  o.width = 320;
+  o.height = 240;
+  o.supersampling = 1;
+  o.frames = 50;
+  const auto camera = make_sim_camera(o);
+  const PinholeCamera pinhole(camera->width(), camera->height(), camera->intrinsics());
+  constexpr std::int64_t kTrustedFrom = 35;  // the geometric start poses from frame 20
+  const auto run = [&](bool correction, std::int64_t trusted_from) {
+    OdometryOptions options;
+    options.illuminator_correction = correction;
+    DirectOdometry odometry(pinhole, options);
+    Simulator simulator(o);
+    std::vector<std::optional<SE3>> poses;
+    while (auto f = simulator.next()) {
+      OdometryFrame frame = to_odometry_frame(f->frame);
+      frame.lamp_factor_trusted = frame.frame_index >= trusted_from;
+      // The lamp on at a constant power, said as 1 W: its ratios are 1 at any value, and 1 leaves
+      // the exposure products (power x exposure with the correction) the same to the last bit,
+      // so the runs compare exactly (50 W moved them by 5 mm through rounding alone).
+      frame.illuminator_power_w = 1.0;
+      poses.push_back(odometry.process(frame).T_world_cam);
+    }
+    return poses;
+  };
+  const auto without = run(false, 0);
+  const auto untrusted = run(true, o.frames);
+  const auto switched = run(true, kTrustedFrom);
+  ASSERT_EQ(without.size(), 50u);
+  ASSERT_EQ(untrusted.size(), 50u);
+  ASSERT_EQ(switched.size(), 50u);
+  const auto apart_m = [](const std::optional<SE3>& a, const std::optional<SE3>& b) {
+    if (a.has_value() != b.has_value()) return std::numeric_limits<double>::infinity();
+    return a ? (a->translation() - b->translation()).norm() : 0.0;
+  };
+  int posed = 0, posed_before_switch = 0;
+  double largest_after_switch = 0.0;
+  for (std::size_t i = 0; i < without.size(); ++i) {
+    posed += without[i].has_value();
+    EXPECT_LT(apart_m(untrusted[i], without[i]), 1e-9) << "frame " << i;
+    if (static_cast<std::int64_t>(i) < kTrustedFrom) {
+      posed_before_switch += switched[i].has_value();
+      EXPECT_LT(apart_m(switched[i], without[i]), 1e-9) << "frame " << i;
+    } else {
+      largest_after_switch = std::max(largest_after_switch, apart_m(switched[i], without[i]));
+    }
+  }
+  EXPECT_GE(posed, 30) << "the odometry tracked from its geometric start on";
+  EXPECT_GE(posed_before_switch, 10) << "poses to compare before the switch";
+  EXPECT_GT(largest_after_switch, 1e-6) << "the trusted frames carry the lamp's factor";
 }
 
 // For investigating one case by hand: NIRSLAM_ODOMETRY_VARIANT=room|tunnel|outdoor|parking with

@@ -160,6 +160,12 @@ struct OdometryFrame {
   // Every residual evaluates the beam with the current m, so a new value applies to the window's
   // keyframes alike.
   std::optional<double> beam_exponent;
+  // With illuminator_correction: false while the lamp factor's brightness ratios are not to be
+  // trusted (the pipeline: the camera response not yet fitted, so the ratios would go through the
+  // wrong curve); the frame then counts as one under a lamp the odometry does not model (factor
+  // 1, affine brightness free), as without the correction. The residuals of the window and the
+  // tracker follow the newest frame's value.
+  bool lamp_factor_trusted = true;
 };
 
 enum class TrackingStatus { Initialising, Tracking, Lost, NewSegment };

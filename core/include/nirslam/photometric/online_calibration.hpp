@@ -58,6 +58,11 @@ struct PhotometricEstimate {  // immutable once published
   ResponseModel response;
   VignetteModel vignette;
   int model_version = 0;       // increments on each back-end update
+  // The response is determined: some adopted update estimated it from exposure changes, without
+  // the lamp's factor (under it the response is weakly determined, README "Illuminator
+  // correction"), or it is held as given (files, a power sweep, backend.estimate_response off).
+  // False while it is the initial guess or has only been fitted under the lamp's factor.
+  bool response_determined = false;
   bool converged = false;
   int iterations = 0;
   double cost = 0.0;           // weighted Huber cost per observation

@@ -470,6 +470,7 @@ struct BackendStep {
   double clip_bound_violation = 0.0;  // by how much (median |s| of those, grey levels)
   bool response_estimated = false;
   bool vignette_estimated = false;
+  bool lit = false;            // the observations carried the light's factor (a lamp-lit problem)
   bool multi_started = false;  // several starting responses were probed
   double grey_low = 0.0;     // 1st and 99th percentile of the observed grey values: f is
   double grey_high = 0.0;    // constrained by data only in between (extrapolated outside)

@@ -23,4 +23,18 @@ inline SimulatorOptions small_ambient_room(std::int64_t frames) {
   return o;
 }
 
+// A bench scene under its lamp at a constant power, one ray a pixel (the bench renders 2x2), by
+// default at half the bench's 640x480: short odometry runs.
+inline SimulatorOptions lamp_sequence(sim::SceneKind scene, double power_w, std::int64_t frames, int width = 320,
+                                      int height = 240) {
+  SimulatorOptions o;
+  o.scene = scene;
+  o.powers_w = {power_w};
+  o.frames = frames;
+  o.width = width;
+  o.height = height;
+  o.supersampling = 1;
+  return o;
+}
+
 }  // namespace nirslam::test_sequences

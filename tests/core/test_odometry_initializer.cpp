@@ -11,6 +11,7 @@
 #include "nirslam/odometry/coarse_initializer.hpp"
 #include "nirslam/odometry/image_pyramid.hpp"
 #include "nirslam/sim/simulator.hpp"
+#include "simulator_fixtures.hpp"
 
 namespace nirslam::odometry {
 namespace {
@@ -18,13 +19,7 @@ namespace {
 void expect_parallel_equals_sequential(const InitializerOptions& options) {
   // The hand-held tunnel at 20 W (a bench sequence), at half size to keep the test short; the
   // parallax threshold is for a 640-wide image, so the snap comes as at full size.
-  SimulatorOptions o;
-  o.scene = sim::SceneKind::Tunnel;
-  o.powers_w = {20.0};
-  o.frames = 30;
-  o.width = 320;
-  o.height = 240;
-  o.supersampling = 1;
+  const SimulatorOptions o = test_sequences::lamp_sequence(sim::SceneKind::Tunnel, 20.0, 30);
   Simulator simulator(o);
   const auto camera = make_sim_camera(o);
   const LevelCamera base{camera->intrinsics()[0], camera->intrinsics()[1], camera->intrinsics()[2],

@@ -22,6 +22,7 @@
 #include "nirslam/odometry/direct_odometry.hpp"
 #include "nirslam/sim/simulator.hpp"
 #include "nirslam/sources/open_source.hpp"
+#include "core/simulator_fixtures.hpp"
 
 namespace nirslam {
 namespace {
@@ -64,13 +65,7 @@ struct SequenceOutcome {
 SequenceOutcome run_simulated(sim::SceneKind scene, double power_w, int frames, bool corrected,
                               const std::function<void(SimulatorOptions&)>& tweak = {},
                               double corrected_exponent = 1.0) {
-  SimulatorOptions o;
-  o.scene = scene;
-  o.powers_w = {power_w};
-  o.frames = frames;
-  o.width = 640;
-  o.height = 480;
-  o.supersampling = 1;
+  SimulatorOptions o = test_sequences::lamp_sequence(scene, power_w, frames, 640, 480);
   if (tweak) tweak(o);
   Simulator simulator(o);
   const auto camera = make_sim_camera(o);
@@ -258,13 +253,7 @@ TEST(OdometrySequence, LossStartsANewSegment) {
 // withholds it until the camera response is fitted): untrusted frames give the poses of an
 // odometry without the correction, and from the frame that trusts it on the factor is in use.
 TEST(OdometrySequence, AnUntrustedLampFactorRunsAsWithoutTheCorrectionUntilTrusted) {
-  SimulatorOptions o;
-  o.scene = sim::SceneKind::Parking;
-  o.powers_w = {50.0};
-  o.width = 320;
-  o.height = 240;
-  o.supersampling = 1;
-  o.frames = 50;
+  const SimulatorOptions o = test_sequences::lamp_sequence(sim::SceneKind::Parking, 50.0, 50);
   const auto camera = make_sim_camera(o);
   const PinholeCamera pinhole(camera->width(), camera->height(), camera->intrinsics());
   constexpr std::int64_t kTrustedFrom = 35;  // the geometric start poses from frame 20

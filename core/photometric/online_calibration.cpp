@@ -133,8 +133,8 @@ std::shared_ptr<const PhotometricEstimate> OnlinePhotometricCalibration::initial
   auto e = std::make_shared<PhotometricEstimate>();
   e->response = backend_.response();
   e->vignette = backend_.vignette();
-  e->response_determined = !options_.backend.estimate_response || options_.response_from_power_sweep.has_value() ||
-                       !options_.given_model.empty();
+  e->response_determined =
+      !options_.backend.estimate_response || options_.response_from_power_sweep.has_value() || !options_.given_model.empty();
   if (options_.backend.beam_halo) {
     e->beam_exponent = backend_.beam_exponent();
     e->beam_lens = options_.backend.beam_halo->lens();
